@@ -1,0 +1,372 @@
+"""Decoding particles into grasps: the paper's "forward direction" (section 2).
+
+For every particle: place the wrist, set the pre-shape, close each finger along its
+flexion until one of its links meets the surface (or its joint limits are reached),
+compute the joint angles with the kinematic model, and detect fingertip contacts,
+penetrations and finger-finger collisions. Everything is batched over particles and
+fingers; the surface is the object's :class:`~grasp_apso.sdf.SignedDistanceGrid`.
+
+Particle layout (D = 19, SI): the 18 values of Cg (see :mod:`grasp_apso.hand`) and the
+standoff offset (m) added to the computed wrist standoff.
+
+Closing motion: finger i moves from its pre-shape ``(theta_i1, theta_i2)`` linearly to
+the upper limits of both flexions, ``theta(s) = pre + s * (upper - pre)``, ``s`` in
+[0, 1], pivot fixed. The first ``s`` at which any link sphere of the finger touches the
+surface is found by a coarse sweep and a bisection. The finger stops there: if its
+fingertip pad is then within ``tolerance`` of the surface it is a fingertip contact;
+if another link touched first, the finger is stopped with no fingertip contact. A
+finger that meets nothing closes to its limits. A finger already penetrating the object
+at its pre-shape (deeper than ``tolerance``) is *blocked*: illegal, the case the GRG
+verification test regenerates.
+
+Wrist position (computed apart, as the paper says): the palm's ``grasp_center`` is
+aimed at the object's centre of mass along the palm normal, at a standoff that puts the
+object's nearest point (its support along the palm normal) ``clearance + offset`` above
+the palm face. A caller may instead fix the wrist position.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .collision import finger_collisions
+from .hand import N_FINGERS, HandModel, wrist_rotation
+from .sdf import SignedDistanceGrid, cached_sdf_grid
+
+#: Index of the standoff offset in a particle.
+STANDOFF_INDEX = 18
+N_DIMS = 19
+
+# Points along the links checked while closing: (link, fraction). The last one is the
+# fingertip pad centre. The finger base (link 0, fraction 0) does not move while closing
+# and is checked at the final pose only.
+_SWEEP_POINTS = np.array(
+    [[0, 1 / 3], [0, 2 / 3], [0, 1.0], [1, 0.5], [1, 1.0], [2, 0.5], [2, 1.0]]
+)
+_ALL_POINTS = np.vstack([[[0, 0.0]], _SWEEP_POINTS])
+_JOINT_POINTS = np.array([[0, 0.0], [0, 1.0], [1, 1.0], [2, 1.0]])
+
+
+def _link_coefficients(points: np.ndarray) -> np.ndarray:
+    """(3, K): a point (link k, fraction f) is sum_j C[j] * segment_j of the planar chain."""
+    coeff = np.zeros((3, len(points)))
+    for col, (link, frac) in enumerate(points):
+        coeff[: int(link), col] = 1.0
+        coeff[int(link), col] = frac
+    return coeff
+
+
+_SWEEP_COEFF = _link_coefficients(_SWEEP_POINTS)
+_ALL_COEFF = _link_coefficients(_ALL_POINTS)
+_JOINT_COEFF = _link_coefficients(_JOINT_POINTS)
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Tunables of decoding (SI units).
+
+    Attributes
+    ----------
+    tolerance : float, m
+        A fingertip pad within this distance of the surface is in contact; a link
+        deeper than this into the object is a penetration.
+    clearance : float, m
+        Gap between the palm face and the object for the computed wrist position.
+    standoff_max : float, m
+        Upper bound of the particle's standoff offset (its lower bound is 0).
+    coarse_steps : int
+        Samples of the closing sweep.
+    refine_steps : int
+        Bisection steps after the sweep (resolution ``1 / ((coarse_steps-1) 2^refine)``).
+    finger_overlap : float, m
+        Overlap allowed between capsules of different fingers (soft skin).
+    """
+
+    tolerance: float = 0.002
+    clearance: float = 0.003
+    standoff_max: float = 0.05
+    coarse_steps: int = 16
+    refine_steps: int = 5
+    finger_overlap: float = 0.002
+
+    def __post_init__(self) -> None:
+        checks = {
+            "tolerance": 0 < self.tolerance <= 0.02,
+            "clearance": 0 <= self.clearance <= 0.05,
+            "standoff_max": 0 < self.standoff_max <= 0.5,
+            "coarse_steps": 2 <= self.coarse_steps <= 200,
+            "refine_steps": 0 <= self.refine_steps <= 30,
+            "finger_overlap": 0 <= self.finger_overlap <= 0.01,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"contact settings: {name} = {getattr(self, name)!r} is out of range")
+
+
+@dataclass(frozen=True)
+class GraspModel:
+    """Everything fixed during a plan: hand, object, its distance grid, settings.
+
+    Build it with :func:`make_grasp_model`. ``obj`` is a
+    :class:`~grasp_apso.objects.GraspObject` (mesh, centre of mass, hull vertices).
+    """
+
+    hand: HandModel
+    obj: object
+    sdf: SignedDistanceGrid
+    settings: ContactSettings
+    lower: np.ndarray = field(repr=False)
+    upper: np.ndarray = field(repr=False)
+    point_radii: np.ndarray = field(repr=False)
+    sweep_radii: np.ndarray = field(repr=False)
+
+    @property
+    def dims(self) -> int:
+        return N_DIMS
+
+
+def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = None) -> GraspModel:
+    """Prepare an object for planning: its signed-distance grid (cached by mesh hash).
+
+    Parameters
+    ----------
+    hand : HandModel
+    obj : GraspObject
+    settings : ContactSettings, optional
+    """
+    settings = settings or ContactSettings()
+    # Decisions are made within a link radius plus the tolerance of the surface; the
+    # padding covers that with margin (farther points read an over-estimate).
+    grid = cached_sdf_grid(obj.mesh, obj.mesh_hash, padding=0.025)
+    lower = np.concatenate([hand.lower, [0.0]])
+    upper = np.concatenate([hand.upper, [settings.standoff_max]])
+    radii = np.array([hand.link_radii[int(k)] for k, _ in _ALL_POINTS])
+    radii[-1] = hand.pad_radius
+    for arr in (lower, upper, radii):
+        arr.flags.writeable = False
+    return GraspModel(
+        hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
+        point_radii=radii, sweep_radii=radii[1:],
+    )
+
+
+@dataclass(frozen=True)
+class DecodedGrasps:
+    """Batch of decoded particles (object frame, SI units).
+
+    Attributes
+    ----------
+    closed : (P, 19) float
+        The closed configurations (flexions at the stop of the closing motion).
+    wrist : (P, 4, 4) float
+        Palm frame in the object frame.
+    joints : (P, 5, 4, 3) float, m
+        Base, PIP, DIP and tip points of each finger, closed.
+    tip_gap : (P, 5) float, m
+        Clearance of each fingertip pad from the surface (negative: inside).
+    contact : (P, 5) bool
+        Fingertip contacts.
+    contact_points, contact_normals : (P, 5, 3) float
+        Surface point under each pad and the outward normal there (all fingers).
+    penetration : (P, 5) float, m
+        Deepest penetration of any link sphere of each finger (0 when none).
+    blocked : (P, 5) bool
+        Finger penetrating the object already at its pre-shape.
+    finger_collision : (P, 5) bool
+        Finger colliding with another finger.
+    palm_penetration : (P,) float, m
+        Deepest penetration of the palm face into the object (fixed wrist only).
+    """
+
+    closed: np.ndarray
+    wrist: np.ndarray
+    joints: np.ndarray
+    tip_gap: np.ndarray
+    contact: np.ndarray
+    contact_points: np.ndarray
+    contact_normals: np.ndarray
+    penetration: np.ndarray
+    blocked: np.ndarray
+    finger_collision: np.ndarray
+    palm_penetration: np.ndarray
+
+    @property
+    def n_contacts(self) -> np.ndarray:
+        """(P,) int: fingertip contacts per particle."""
+        return self.contact.sum(axis=1)
+
+    def finger_illegal(self, tolerance: float) -> np.ndarray:
+        """(P, 5) bool: fingers the verification test rejects."""
+        return self.blocked | self.finger_collision | (self.penetration > tolerance)
+
+    def legal(self, tolerance: float) -> np.ndarray:
+        """(P,) bool: no illegal finger and no palm penetration."""
+        return ~self.finger_illegal(tolerance).any(axis=1) & (self.palm_penetration <= tolerance)
+
+
+def wrist_transforms(
+    model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None = None
+) -> np.ndarray:
+    """Palm frames in the object frame for particles.
+
+    Parameters
+    ----------
+    x : (P, 19) float
+    wrist_position : (3,) float, m, optional
+        Fixed wrist (palm origin) position in the object frame; computed when None.
+
+    Returns
+    -------
+    (P, 4, 4) float
+    """
+    rot = wrist_rotation(x[:, 15:18])
+    tf = np.zeros((len(x), 4, 4))
+    tf[:, :3, :3] = rot
+    tf[:, 3, 3] = 1.0
+    if wrist_position is not None:
+        tf[:, :3, 3] = np.asarray(wrist_position, dtype=float)
+        return tf
+    normal = rot[:, :, 2]
+    com = np.asarray(model.obj.center_of_mass)
+    hull = np.asarray(model.obj.hull_vertices) - com
+    support = (hull @ (-normal.T)).max(axis=0)  # extent of the object toward the palm
+    hand = model.hand
+    palm_face = hand.palm_center[2] + hand.palm_half_extents[2]
+    height = palm_face + model.settings.clearance + x[:, STANDOFF_INDEX] + support
+    local = hand.grasp_center[None, :] + height[:, None] * np.array([0.0, 0.0, 1.0])
+    tf[:, :3, 3] = com - np.einsum("pij,pj->pi", rot, local)
+    return tf
+
+
+class _FingerBasis:
+    """Flexion planes of all fingers in the object frame, component-major for speed."""
+
+    def __init__(self, model: GraspModel, origin: np.ndarray, ex: np.ndarray, ey: np.ndarray):
+        self.hand = model.hand
+        self.origin = np.moveaxis(origin, -1, 0)  # (3, P, 5)
+        self.ex = np.moveaxis(ex, -1, 0)
+        self.ey = np.moveaxis(ey, -1, 0)
+
+    def points(self, distal: np.ndarray, proximal: np.ndarray, coeff: np.ndarray) -> tuple[np.ndarray, ...]:
+        """x, y, z of link points, each (P, 5, ..., K), for flexions (P, 5, ...)."""
+        hand = self.hand
+        extra = distal.ndim - 2
+        phi = np.stack(
+            [proximal, proximal + hand.coupling_ratio * distal,
+             proximal + (hand.coupling_ratio + 1.0) * distal],
+            axis=-1,
+        )
+        lengths = hand.link_lengths.reshape((1, N_FINGERS) + (1,) * extra + (3,))
+        u = (lengths * np.cos(phi)) @ coeff
+        v = (lengths * np.sin(phi)) @ coeff
+        shape = self.origin.shape[1:] + (1,) * (extra + 1)
+        return tuple(
+            self.origin[c].reshape(shape) + u * self.ex[c].reshape(shape) + v * self.ey[c].reshape(shape)
+            for c in range(3)
+        )
+
+
+def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> DecodedGrasps:
+    """Decode particles into closed grasps (vectorised over particles and fingers).
+
+    Parameters
+    ----------
+    model : GraspModel
+    x : (P, 19) float
+        Particles (pre-shapes, wrist angles, standoff offset); clamped to the bounds.
+    wrist_position : (3,) float, m, optional
+        Fixed wrist position in the object frame (operator path).
+
+    Returns
+    -------
+    DecodedGrasps
+    """
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 2 or x.shape[1] != N_DIMS:
+        raise ValueError(f"x: expected (P, {N_DIMS}), got {x.shape}")
+    x = np.clip(x, model.lower, model.upper)
+    hand, sdf, settings = model.hand, model.sdf, model.settings
+    n = len(x)
+    tol = settings.tolerance
+
+    wrist = wrist_transforms(model, x, wrist_position)
+    rot, trans = wrist[:, :3, :3], wrist[:, :3, 3]
+    theta = x[:, :15].reshape(n, N_FINGERS, 3)
+    distal0, proximal0, pivot = theta[..., 0], theta[..., 1], theta[..., 2]
+    o_palm, ex_palm, ey_palm = hand.flexion_planes(pivot)
+    basis = _FingerBasis(
+        model,
+        np.einsum("pij,pfj->pfi", rot, o_palm) + trans[:, None, :],
+        np.einsum("pij,pfj->pfi", rot, ex_palm),
+        np.einsum("pij,pfj->pfi", rot, ey_palm),
+    )
+    d_span = hand.upper[0:15:3] - distal0
+    p_span = hand.upper[1:15:3] - proximal0
+
+    def min_clearance(s: np.ndarray) -> np.ndarray:
+        """Smallest link clearance of each finger at closing parameters s (P, 5, ...)."""
+        extra = (1,) * (s.ndim - 2)
+        d = distal0.reshape(n, N_FINGERS, *extra) + s * d_span.reshape(n, N_FINGERS, *extra)
+        p = proximal0.reshape(n, N_FINGERS, *extra) + s * p_span.reshape(n, N_FINGERS, *extra)
+        return (sdf.distance_xyz(*basis.points(d, p, _SWEEP_COEFF)) - model.sweep_radii).min(axis=-1)
+
+    # Coarse sweep of the closing motion.
+    steps = np.linspace(0.0, 1.0, settings.coarse_steps)
+    clear = min_clearance(np.broadcast_to(steps, (n, N_FINGERS, len(steps))))  # (P, 5, K)
+    hit = clear <= 0.0
+    any_hit = hit.any(axis=2)
+    first = np.argmax(hit, axis=2)
+    blocked = clear[..., 0] < -tol
+    # Bisection in [s_{k-1}, s_k] on the first crossing; fingers that touch at s = 0 or
+    # meet nothing keep s = 0 or s = 1.
+    refine = any_hit & (first > 0)
+    lo = np.where(refine, steps[np.maximum(first - 1, 0)], np.where(any_hit, 0.0, 1.0))
+    hi = np.where(refine, steps[first], lo)
+    for _ in range(settings.refine_steps):
+        mid = 0.5 * (lo + hi)
+        clear_mid = min_clearance(mid)
+        free = clear_mid > 0.0
+        lo = np.where(refine & free, mid, lo)
+        hi = np.where(refine & ~free, mid, hi)
+    s = lo
+
+    distal = distal0 + s * d_span
+    proximal = proximal0 + s * p_span
+    pts = np.stack(basis.points(distal, proximal, _ALL_COEFF), axis=-1)  # (P, 5, 8, 3)
+    clearance = sdf.distance(pts) - model.point_radii
+    tip_gap = clearance[..., -1]
+    # The sphere that stopped the finger is within the bisection resolution of the
+    # surface; a pad within the tolerance is a fingertip contact.
+    contact = (tip_gap <= tol) & ~blocked & (clearance[..., :-1].min(axis=-1) >= -tol)
+    penetration = np.maximum(0.0, -clearance.min(axis=-1))
+    tips = pts[..., -1, :]
+    surface, normals = sdf.closest_surface_point(tips)
+
+    joints = pts[..., [0, 3, 5, 7], :]  # base, PIP, DIP, tip
+    collide = finger_collisions(joints, np.array([*hand.link_radii[:2], hand.pad_radius]), settings.finger_overlap)
+
+    closed = x.copy()
+    closed[:, 0:15:3] = distal
+    closed[:, 1:15:3] = proximal
+    if wrist_position is None:
+        palm_pen = np.zeros(n)
+    else:
+        palm_pen = _palm_penetration(model, wrist)
+    return DecodedGrasps(
+        closed=closed, wrist=wrist, joints=joints, tip_gap=tip_gap, contact=contact,
+        contact_points=surface, contact_normals=normals, penetration=penetration,
+        blocked=blocked, finger_collision=collide, palm_penetration=palm_pen,
+    )
+
+
+def _palm_penetration(model: GraspModel, wrist: np.ndarray) -> np.ndarray:
+    """Deepest penetration (m) of points on the palm face into the object: (P,)."""
+    hand = model.hand
+    cx, cy, cz = hand.palm_center
+    hx, hy, hz = hand.palm_half_extents
+    gx, gy = np.meshgrid(np.linspace(cx - hx, cx + hx, 7), np.linspace(cy - hy, cy + hy, 7), indexing="ij")
+    face = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, cz + hz)], axis=1)
+    pts = np.einsum("pij,kj->pki", wrist[:, :3, :3], face) + wrist[:, None, :3, 3]
+    return np.maximum(0.0, -model.sdf.distance(pts).min(axis=1))

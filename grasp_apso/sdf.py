@@ -1,0 +1,270 @@
+"""Signed distance to the object surface: a grid built once per mesh, vectorised look-ups.
+
+Exact point-to-mesh queries cost about 200 us each (python-fcl) or far more (trimesh), and
+a plan makes hundreds of thousands of them (``shared/notes/geometry-speed.md``). So the
+signed distance is sampled once on a regular grid around the object and read back by
+trilinear interpolation, about 50 ns a point.
+
+Building the grid (:func:`build_sdf_grid`):
+
+1. voxelise the surface, flood-fill it for inside/outside, and take a Euclidean
+   distance transform for the coarse distance away from the surface;
+2. in a narrow band around the surface (12 mm outside, 4 mm inside by default), sample the surface densely
+   (area-weighted, seeded) and take for every node the nearest sample
+   (``scipy.spatial.cKDTree``): the distance to its tangent plane where the node lies
+   over it (exact on flat parts, second order on curved ones), else the distance to the
+   sample (beyond edges and corners); the sign from the tangent-plane side.
+
+Outside the grid box, the distance is the value at the nearest box point plus the
+distance to the box, an over-estimate that only matters far from the object, where
+nothing is decided. Negative values are inside the object. Grids are cached by mesh hash.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import trimesh
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+# Corner offsets of a grid cell, in (i, j, k) order, for trilinear interpolation.
+_CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+
+
+@dataclass(frozen=True)
+class SignedDistanceGrid:
+    """Signed distance samples on a regular grid (immutable).
+
+    Attributes
+    ----------
+    origin : (3,) float, m
+        Position of node (0, 0, 0) in the object frame.
+    spacing : float, m
+        Node spacing (cubic cells).
+    values : (nx, ny, nz) float, m
+        Signed distance at the nodes (negative inside).
+    """
+
+    origin: np.ndarray
+    spacing: float
+    values: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.values.shape  # type: ignore[return-value]
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(3,) float, m: position of the last node."""
+        return self.origin + self.spacing * (np.array(self.shape) - 1)
+
+    @cached_property
+    def _corner_table(self) -> np.ndarray:
+        """(cells, 8) float32: the 8 corner values of every cell, for one gather a point."""
+        v = self.values.astype(np.float32)
+        table = np.stack(
+            [v[i : v.shape[0] - 1 + i, j : v.shape[1] - 1 + j, k : v.shape[2] - 1 + k]
+             for i, j, k in _CORNERS],
+            axis=-1,
+        ).reshape(-1, 8)
+        table.flags.writeable = False
+        return table
+
+    def distance_xyz(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Signed distance at points given as separate coordinate arrays (the fast path).
+
+        Parameters
+        ----------
+        x, y, z : (...) float, m, object frame (same shape)
+
+        Returns
+        -------
+        (...) float, m (negative inside)
+        """
+        n_cells = self.shape[0] - 1, self.shape[1] - 1, self.shape[2] - 1
+        inv = 1.0 / self.spacing
+        out2 = None
+        idx = []
+        frac = []
+        for coord, o, n in zip((x, y, z), self.origin, n_cells):
+            g = (coord - o) * inv
+            gc = np.clip(g, 0.0, n - 1e-6)
+            i = gc.astype(np.intp)
+            frac.append(gc - i)
+            idx.append(i)
+            d = g - gc
+            out2 = d * d if out2 is None else out2 + d * d
+        cell = (idx[0] * n_cells[1] + idx[1]) * n_cells[2] + idx[2]
+        c = np.take(self._corner_table, cell.reshape(-1), axis=0)
+        fx, fy, fz = (f.reshape(-1, 1) for f in frac)
+        # Corners are ordered (i, j, k) with k fastest: interpolate z, then y, then x.
+        cz = c[:, 0::2] + (c[:, 1::2] - c[:, 0::2]) * fz
+        cy = cz[:, 0::2] + (cz[:, 1::2] - cz[:, 0::2]) * fy
+        d = (cy[:, 0:1] + (cy[:, 1:2] - cy[:, 0:1]) * fx).reshape(cell.shape)
+        return d + np.sqrt(out2) * self.spacing
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance at points (trilinear interpolation).
+
+        Parameters
+        ----------
+        points : (..., 3) float, m, object frame
+
+        Returns
+        -------
+        (...,) float, m (negative inside)
+        """
+        points = np.asarray(points, dtype=float)
+        return self.distance_xyz(points[..., 0], points[..., 1], points[..., 2])
+
+    def gradient(self, points: np.ndarray, step: float | None = None) -> np.ndarray:
+        """Unit gradient of the signed distance (outward surface normal near the surface).
+
+        points : (..., 3) float, m -> (..., 3) float, unit vectors
+        """
+        points = np.asarray(points, dtype=float)
+        h = 0.5 * self.spacing if step is None else step
+        offsets = np.eye(3) * h
+        grad = np.stack(
+            [self.distance(points + offsets[a]) - self.distance(points - offsets[a]) for a in range(3)],
+            axis=-1,
+        )
+        norm = np.linalg.norm(grad, axis=-1, keepdims=True)
+        return grad / np.maximum(norm, 1e-12)
+
+    def closest_surface_point(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Project points onto the zero level set (one Newton step).
+
+        points : (..., 3) float, m -> (surface points (..., 3), outward normals (..., 3))
+        """
+        normal = self.gradient(points)
+        return points - self.distance(points)[..., None] * normal, normal
+
+
+def _surface_samples(mesh: trimesh.Trimesh, spacing: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Area-weighted surface samples and the normals of the faces they lie on.
+
+    Vertices are not used: at a sharp edge their averaged normal defines no tangent plane.
+    """
+    count = int(np.clip(4.0 * mesh.area / (0.5 * spacing) ** 2, 20_000, 400_000))
+    points, face_index = trimesh.sample.sample_surface(mesh, count, seed=seed)
+    return np.asarray(points), np.asarray(mesh.face_normals[face_index])
+
+
+def build_sdf_grid(
+    mesh: trimesh.Trimesh,
+    padding: float = 0.03,
+    max_nodes: int = 240_000,
+    min_spacing: float = 0.001,
+    seed: int = 0,
+    band_width: float = 0.012,
+    inside_band_width: float = 0.004,
+) -> SignedDistanceGrid:
+    """Sample the signed distance of a closed mesh on a grid around it.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Object surface in the object frame, m. Should be closed; for an open mesh the
+        sign far from the surface falls back to "outside".
+    padding : float, m
+        Margin around the bounding box covered by the grid.
+    max_nodes : int
+        Node budget; sets the spacing for large objects.
+    min_spacing : float, m
+        Finest spacing used for small objects.
+    seed : int
+        Seed of the surface sampling (the grid is deterministic).
+    band_width, inside_band_width : float, m
+        Distances outside / inside the surface within which values are accurate
+        (sub-millimetre); beyond them they come from a distance transform (error about
+        one spacing).
+
+    Returns
+    -------
+    SignedDistanceGrid
+    """
+    if padding <= 0 or max_nodes < 1000 or min_spacing <= 0:
+        raise ValueError("build_sdf_grid: padding, min_spacing must be > 0 and max_nodes >= 1000")
+    lo, hi = mesh.bounds[0] - padding, mesh.bounds[1] + padding
+    size = hi - lo
+    spacing = max(min_spacing, float(np.cbrt(np.prod(size) / max_nodes)))
+    shape = np.ceil(size / spacing).astype(int) + 1
+    axes = [lo[a] + spacing * np.arange(shape[a]) for a in range(3)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+    samples, normals = _surface_samples(mesh, spacing, seed)
+    sample_gap = float(np.sqrt(mesh.area / len(samples)))
+
+    # Voxelised surface shell; its flood fill gives inside/outside away from the surface
+    # and its Euclidean distance transform the (coarse) distance there.
+    occupied = np.zeros(shape, dtype=bool)
+    cells = np.clip(np.floor((samples - lo) / spacing + 0.5).astype(int), 0, shape - 1)
+    occupied[cells[:, 0], cells[:, 1], cells[:, 2]] = True
+    inside = ndimage.binary_fill_holes(occupied) & ~occupied
+    coarse = ndimage.distance_transform_edt(~occupied) * spacing
+    values = np.where(inside, -coarse, coarse).reshape(-1)
+
+    # Narrow band: accurate distances from the nearest surface sample. Nodes farther than
+    # the band keep the coarse value (a KD-tree query far from the surface is slow and
+    # nothing is decided there).
+    # Inside, only the first millimetres matter (penetration beyond the tolerance is
+    # illegal however deep), and deep nodes make slow queries: the band is one-sided.
+    band = max(band_width, 3.0 * spacing) + 2.0 * spacing
+    band_inside = max(inside_band_width, 2.0 * spacing) + 2.0 * spacing
+    near_nodes = np.flatnonzero((values <= band) & (values >= -band_inside))
+    tree = cKDTree(samples)
+    dist, idx = tree.query(nodes[near_nodes], k=1, distance_upper_bound=band, workers=-1)
+    found = np.isfinite(dist)
+    near_nodes, dist, idx = near_nodes[found], dist[found], idx[found]
+    offset = nodes[near_nodes] - samples[idx]
+    along = np.einsum("ij,ij->i", offset, normals[idx])
+    lateral = np.sqrt(np.maximum(dist**2 - along**2, 0.0))
+    # Tangent-plane distance where the node lies over its nearest sample (flat or smooth
+    # parts); the distance to the sample itself beyond edges and corners.
+    exact = np.where(lateral <= sample_gap, np.abs(along), dist)
+    sign_plane = np.where(along < 0.0, -1.0, 1.0)
+    # Beside a face's edge the nearest sample's plane says nothing (along ~ 0): take the
+    # side of the neighbouring sample the node lies most squarely over.
+    ambiguous = np.flatnonzero(np.abs(along) < 0.5 * dist)
+    if ambiguous.size:
+        pts = nodes[near_nodes[ambiguous]]
+        d_k, i_k = tree.query(pts, k=16, workers=-1)
+        al_k = np.einsum("ikj,ikj->ik", pts[:, None, :] - samples[i_k], normals[i_k])
+        best = np.argmax(np.abs(al_k) / np.maximum(d_k, 1e-12), axis=1)
+        sign_plane[ambiguous] = np.where(al_k[np.arange(len(best)), best] < 0.0, -1.0, 1.0)
+    sign_fill = np.sign(values[near_nodes])
+    # Trust the tangent-plane side close to the surface, the fill farther out.
+    sign = np.where(dist < 2.0 * spacing, sign_plane, np.where(sign_fill == 0, sign_plane, sign_fill))
+    values[near_nodes] = sign * exact
+    grid = values.reshape(shape)
+    grid.flags.writeable = False
+    origin = lo.copy()
+    origin.flags.writeable = False
+    return SignedDistanceGrid(origin=origin, spacing=spacing, values=grid)
+
+
+_CACHE: "OrderedDict[tuple, SignedDistanceGrid]" = OrderedDict()
+_CACHE_LOCK = threading.Lock()
+_CACHE_SIZE = 8
+
+
+def cached_sdf_grid(mesh: trimesh.Trimesh, key: str, **kwargs) -> SignedDistanceGrid:
+    """:func:`build_sdf_grid` memoised by ``key`` (the mesh hash) and the options."""
+    cache_key = (key, tuple(sorted(kwargs.items())))
+    with _CACHE_LOCK:
+        grid = _CACHE.get(cache_key)
+        if grid is not None:
+            _CACHE.move_to_end(cache_key)
+            return grid
+    grid = build_sdf_grid(mesh, **kwargs)
+    with _CACHE_LOCK:
+        _CACHE[cache_key] = grid
+        while len(_CACHE) > _CACHE_SIZE:
+            _CACHE.popitem(last=False)
+    return grid
