@@ -42,11 +42,19 @@ N_DIMS = 19
 # Points along the links checked while closing: (link, fraction). The last one is the
 # fingertip pad centre. The finger base (link 0, fraction 0) does not move while closing
 # and is checked at the final pose only.
+# Spacing about 11 mm for 9 mm radii: a capsule may dip up to about 2 mm into the surface
+# between two spheres while sweeping; the dense final check catches that.
 _SWEEP_POINTS = np.array(
-    [[0, 1 / 3], [0, 2 / 3], [0, 1.0], [1, 0.5], [1, 1.0], [2, 0.5], [2, 1.0]]
+    [[0, 0.25], [0, 0.5], [0, 0.75], [0, 1.0], [1, 1 / 3], [1, 2 / 3], [1, 1.0],
+     [2, 1 / 3], [2, 2 / 3], [2, 1.0]]
 )
-_ALL_POINTS = np.vstack([[[0, 0.0]], _SWEEP_POINTS])
-_JOINT_POINTS = np.array([[0, 0.0], [0, 1.0], [1, 1.0], [2, 1.0]])
+# Final check of the closed pose: base, joints, and spheres every ~4 mm (the capsule is
+# covered to within 0.3 mm); the last point is the pad.
+_FINAL_POINTS = np.array(
+    [[0, 0.0]] + [[0, f] for f in np.linspace(1 / 12, 1.0, 12)]
+    + [[1, f] for f in np.linspace(1 / 8, 1.0, 8)] + [[2, f] for f in np.linspace(1 / 7, 1.0, 7)]
+)
+_JOINT_INDEX = [0, 12, 20, 27]  # base, PIP, DIP, tip in _FINAL_POINTS
 
 
 def _link_coefficients(points: np.ndarray) -> np.ndarray:
@@ -59,8 +67,7 @@ def _link_coefficients(points: np.ndarray) -> np.ndarray:
 
 
 _SWEEP_COEFF = _link_coefficients(_SWEEP_POINTS)
-_ALL_COEFF = _link_coefficients(_ALL_POINTS)
-_JOINT_COEFF = _link_coefficients(_JOINT_POINTS)
+_FINAL_COEFF = _link_coefficients(_FINAL_POINTS)
 
 
 @dataclass(frozen=True)
@@ -70,10 +77,14 @@ class ContactSettings:
     Attributes
     ----------
     tolerance : float, m
-        A fingertip pad within this distance of the surface is in contact; a link
-        deeper than this into the object is a penetration.
+        A fingertip pad within this distance of the surface is in contact; a finger
+        deeper than this into the object at its pre-shape is blocked.
+    max_penetration : float, m
+        A link sphere deeper than this into the object after closing makes the particle
+        illegal (closing stops at the surface, so only static parts, the knuckles, can).
     clearance : float, m
-        Gap between the palm face and the object for the computed wrist position.
+        Gap between the palm face and the object for the computed wrist position; the
+        knuckle spheres protrude about 7 mm above the palm face.
     standoff_max : float, m
         Upper bound of the particle's standoff offset (its lower bound is 0).
     coarse_steps : int
@@ -85,7 +96,8 @@ class ContactSettings:
     """
 
     tolerance: float = 0.002
-    clearance: float = 0.003
+    max_penetration: float = 0.0005
+    clearance: float = 0.008
     standoff_max: float = 0.05
     coarse_steps: int = 16
     refine_steps: int = 5
@@ -94,6 +106,7 @@ class ContactSettings:
     def __post_init__(self) -> None:
         checks = {
             "tolerance": 0 < self.tolerance <= 0.02,
+            "max_penetration": 0 <= self.max_penetration <= 0.02,
             "clearance": 0 <= self.clearance <= 0.05,
             "standoff_max": 0 < self.standoff_max <= 0.5,
             "coarse_steps": 2 <= self.coarse_steps <= 200,
@@ -142,13 +155,14 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     grid = cached_sdf_grid(obj.mesh, obj.mesh_hash, padding=0.025)
     lower = np.concatenate([hand.lower, [0.0]])
     upper = np.concatenate([hand.upper, [settings.standoff_max]])
-    radii = np.array([hand.link_radii[int(k)] for k, _ in _ALL_POINTS])
-    radii[-1] = hand.pad_radius
-    for arr in (lower, upper, radii):
+    final_radii = np.array([hand.link_radii[int(k)] for k, _ in _FINAL_POINTS])
+    sweep_radii = np.array([hand.link_radii[int(k)] for k, _ in _SWEEP_POINTS])
+    final_radii[-1] = sweep_radii[-1] = hand.pad_radius
+    for arr in (lower, upper, final_radii, sweep_radii):
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
-        point_radii=radii, sweep_radii=radii[1:],
+        point_radii=final_radii, sweep_radii=sweep_radii,
     )
 
 
@@ -197,13 +211,13 @@ class DecodedGrasps:
         """(P,) int: fingertip contacts per particle."""
         return self.contact.sum(axis=1)
 
-    def finger_illegal(self, tolerance: float) -> np.ndarray:
+    def finger_illegal(self, max_penetration: float) -> np.ndarray:
         """(P, 5) bool: fingers the verification test rejects."""
-        return self.blocked | self.finger_collision | (self.penetration > tolerance)
+        return self.blocked | self.finger_collision | (self.penetration > max_penetration)
 
-    def legal(self, tolerance: float) -> np.ndarray:
+    def legal(self, max_penetration: float) -> np.ndarray:
         """(P,) bool: no illegal finger and no palm penetration."""
-        return ~self.finger_illegal(tolerance).any(axis=1) & (self.palm_penetration <= tolerance)
+        return ~self.finger_illegal(max_penetration).any(axis=1) & (self.palm_penetration <= max_penetration)
 
 
 def wrist_transforms(
@@ -318,7 +332,7 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
     hit = clear <= 0.0
     any_hit = hit.any(axis=2)
     first = np.argmax(hit, axis=2)
-    blocked = clear[..., 0] < -tol
+    blocked = clear[..., 0] < -settings.max_penetration
     # Bisection in [s_{k-1}, s_k] on the first crossing; fingers that touch at s = 0 or
     # meet nothing keep s = 0 or s = 1.
     refine = any_hit & (first > 0)
@@ -334,17 +348,17 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
 
     distal = distal0 + s * d_span
     proximal = proximal0 + s * p_span
-    pts = np.stack(basis.points(distal, proximal, _ALL_COEFF), axis=-1)  # (P, 5, 8, 3)
+    pts = np.stack(basis.points(distal, proximal, _FINAL_COEFF), axis=-1)  # (P, 5, 28, 3)
     clearance = sdf.distance(pts) - model.point_radii
     tip_gap = clearance[..., -1]
+    penetration = np.maximum(0.0, -clearance.min(axis=-1))
     # The sphere that stopped the finger is within the bisection resolution of the
     # surface; a pad within the tolerance is a fingertip contact.
-    contact = (tip_gap <= tol) & ~blocked & (clearance[..., :-1].min(axis=-1) >= -tol)
-    penetration = np.maximum(0.0, -clearance.min(axis=-1))
+    contact = (tip_gap <= tol) & ~blocked & (penetration <= settings.max_penetration)
     tips = pts[..., -1, :]
     surface, normals = sdf.closest_surface_point(tips)
 
-    joints = pts[..., [0, 3, 5, 7], :]  # base, PIP, DIP, tip
+    joints = pts[..., _JOINT_INDEX, :]
     collide = finger_collisions(joints, np.array([*hand.link_radii[:2], hand.pad_radius]), settings.finger_overlap)
 
     closed = x.copy()

@@ -1,0 +1,304 @@
+"""Guided Random Generation (paper section 4.2) and the shape "parameter factor".
+
+GRG draws particles that are plausible grasps before any optimisation:
+
+1. *Parameter factor*: :func:`classify_shape` compares the mesh with its bounding
+   primitives and principal extents and puts it in a sub-class (sphere-like, box-like,
+   cylinder-like, elongated). The class guides the wrist orientations sampled (approach a
+   box along a face normal, a cylinder or elongated object across its long axis with the
+   fingers spread along it, a sphere from anywhere) and scores wrists in the fitness
+   (:meth:`ShapeClass.wrist_score`).
+2. Random joint angles within the Table 2 limits, biased toward open anthropomorphic
+   pre-shapes (low flexion, the thumb pivoted toward opposition), decoded by closing the
+   fingers; a particle is kept when it makes at least 2 fingertip contacts.
+3. *Verification test*: a finger that penetrates the object (already at its pre-shape,
+   or a link deeper than the tolerance) or collides with another finger gets new values
+   for that finger only, and the particle is decoded again (a bounded number of rounds).
+
+Every loop is bounded; :class:`GraspPlanningError` says so when not enough valid
+particles can be found.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import N_DIMS, STANDOFF_INDEX, GraspModel, decode
+from .hand import N_FINGERS
+
+SHAPE_CLASSES: tuple[str, ...] = ("sphere-like", "box-like", "cylinder-like", "elongated")
+
+
+class GraspPlanningError(ValueError):
+    """The request cannot be planned (object unsuitable for the hand, no valid grasp)."""
+
+
+@dataclass(frozen=True)
+class ShapeClass:
+    """The shape parameter factor of an object.
+
+    Attributes
+    ----------
+    name : str
+        One of :data:`SHAPE_CLASSES`.
+    axes : (3, 3) float
+        Principal axes (rows, unit, object frame), longest first.
+    extents : (3,) float, m
+        Sizes along the axes.
+    box_fill : float
+        Volume over oriented-bounding-box volume (1 box, 0.785 cylinder, 0.524 sphere).
+    """
+
+    name: str
+    axes: np.ndarray
+    extents: np.ndarray
+    box_fill: float
+
+    def sample_wrists(self, n: int, rng: np.random.Generator, guided_fraction: float = 0.8) -> np.ndarray:
+        """Wrist rotations (palm in the object frame) guided by the class.
+
+        Returns
+        -------
+        (n, 3, 3) float
+            Columns: palm x (fingers), y (thumb side), z (palm normal, toward the object).
+        """
+        approach = _random_unit(rng, n)
+        finger = _random_unit(rng, n)
+        guided = rng.random(n) < guided_fraction
+        e0, e1, e2 = self.axes
+        if self.name == "box-like":
+            k = rng.integers(0, 3, n)
+            sign = rng.choice([-1.0, 1.0], n)
+            approach_g = self.axes[k] * sign[:, None]
+            j = (k + rng.integers(1, 3, n)) % 3
+            finger_g = self.axes[j] * rng.choice([-1.0, 1.0], n)[:, None]
+        elif self.name in ("cylinder-like", "elongated"):
+            phi = rng.uniform(0.0, 2.0 * math.pi, n)
+            approach_g = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+            spread = e0 * rng.choice([-1.0, 1.0], n)[:, None]  # palm y along the long axis
+            finger_g = np.cross(spread, approach_g)
+        else:
+            approach_g, finger_g = approach, finger
+        approach = np.where(guided[:, None], approach_g, approach)
+        finger = np.where(guided[:, None], finger_g, finger)
+        rot = _frames(approach, finger)
+        # A little noise (about 10 degrees) around the guided orientation.
+        return _small_rotations(rng, n, math.radians(10.0)) @ rot
+
+    def wrist_score(self, rotations: np.ndarray) -> np.ndarray:
+        """How well wrists match the class's approach, in [0, 1].
+
+        rotations : (P, 3, 3) palm in the object frame -> (P,)
+        """
+        approach = rotations[:, :, 2]
+        spread = rotations[:, :, 1]
+        if self.name == "box-like":
+            cos = np.abs(approach @ self.axes.T).max(axis=1)
+            return np.clip((cos - math.sqrt(0.5)) / (1.0 - math.sqrt(0.5)), 0.0, 1.0)
+        if self.name in ("cylinder-like", "elongated"):
+            along = np.abs(approach @ self.axes[0])
+            return np.sqrt(np.clip(1.0 - along**2, 0.0, 1.0)) * np.abs(spread @ self.axes[0])
+        return np.ones(len(rotations))
+
+
+def classify_shape(obj) -> ShapeClass:
+    """Shape parameter factor of a :class:`~grasp_apso.objects.GraspObject`.
+
+    Rules (a >= b >= c the principal extents, fill = volume / (a b c)):
+    sphere-like when a / c < 1.3 and fill < 0.65; box-like when fill > 0.85 and a / b < 2;
+    cylinder-like when a / b >= 1.3, b / c < 1.25 and 0.65 <= fill <= 0.9; elongated
+    otherwise when a / b >= 1.3; remaining compact shapes count as box-like when
+    fill > 0.7, else sphere-like.
+    """
+    extents = np.asarray(obj.principal_extents, dtype=float)
+    axes = np.asarray(obj.principal_axes, dtype=float)
+    a, b, c = extents
+    volume = float(abs(obj.mesh.volume)) if obj.watertight else float(obj.mesh.convex_hull.volume)
+    fill = volume / max(a * b * c, 1e-18)
+    if a / c < 1.3 and fill < 0.65:
+        name = "sphere-like"
+    elif fill > 0.85 and a / b < 2.0:
+        name = "box-like"
+    elif a / b >= 1.3 and b / c < 1.25 and 0.65 <= fill <= 0.9:
+        name = "cylinder-like"
+    elif a / b >= 1.3:
+        name = "elongated"
+    else:
+        name = "box-like" if fill > 0.7 else "sphere-like"
+    return ShapeClass(name=name, axes=axes, extents=extents, box_fill=fill)
+
+
+def rotation_to_wrist_angles(rot: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`grasp_apso.hand.wrist_rotation`: (P, 3, 3) -> (P, 3) rad."""
+    ty = -np.arcsin(np.clip(rot[:, 2, 0], -1.0, 1.0))
+    tx = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
+    tz = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+    return np.stack([tx, ty, tz], axis=1)
+
+
+def _random_unit(rng: np.random.Generator, n: int) -> np.ndarray:
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _frames(approach: np.ndarray, finger: np.ndarray) -> np.ndarray:
+    """Rotations with z = approach and x = finger made orthogonal to it: (n, 3, 3)."""
+    z = approach / np.linalg.norm(approach, axis=1, keepdims=True)
+    x = finger - np.einsum("ni,ni->n", finger, z)[:, None] * z
+    norm = np.linalg.norm(x, axis=1, keepdims=True)
+    fallback = np.cross(z, np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    x = np.where(norm > 1e-6, x / np.maximum(norm, 1e-12), fallback / np.linalg.norm(fallback, axis=1, keepdims=True))
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def _small_rotations(rng: np.random.Generator, n: int, sigma: float) -> np.ndarray:
+    """Random rotations with angle ~ |N(0, sigma)| about random axes: (n, 3, 3)."""
+    axis = _random_unit(rng, n)
+    angle = rng.normal(0.0, sigma, n)
+    k = np.zeros((n, 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k = k - k.transpose(0, 2, 1)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+@dataclass(frozen=True)
+class PreshapeRanges:
+    """Fractions of each joint range GRG samples pre-shapes from (anthropomorphic bias).
+
+    Attributes
+    ----------
+    flexion_max : float
+        Distal and proximal flexions are drawn in the lowest ``flexion_max`` of their
+        range (an open hand that closes onto the object).
+    thumb_pivot_min : float
+        Thumb pivot drawn in the top ``1 - thumb_pivot_min`` of its range (opposition).
+    standoff_max : float, m
+        Standoff offsets drawn in [0, standoff_max].
+    """
+
+    flexion_max: float = 0.35
+    thumb_pivot_min: float = 0.35
+    standoff_max: float = 0.02
+
+
+def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: PreshapeRanges) -> np.ndarray:
+    """Finger values (n, 15): pre-shapes within the joint limits, see :class:`PreshapeRanges`."""
+    lo, hi = model.lower[:15], model.upper[:15]
+    frac_hi = np.tile([ranges.flexion_max, ranges.flexion_max, 1.0], N_FINGERS)
+    frac_lo = np.zeros(15)
+    frac_lo[14] = ranges.thumb_pivot_min
+    u = rng.uniform(frac_lo, frac_hi, (n, 15))
+    return lo + u * (hi - lo)
+
+
+def sample_particles(
+    model: GraspModel, shape: ShapeClass, n: int, rng: np.random.Generator, ranges: PreshapeRanges
+) -> np.ndarray:
+    """Unverified guided particles (n, 19)."""
+    x = np.empty((n, N_DIMS))
+    x[:, :15] = sample_fingers(model, n, rng, ranges)
+    x[:, 15:18] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+    x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(ranges.standoff_max, model.upper[STANDOFF_INDEX]), n)
+    return x
+
+
+@dataclass
+class GuidedGenerator:
+    """GRG with a reservoir of verified particles (APSO draws replacements from it).
+
+    Attributes
+    ----------
+    evaluations : int
+        Particle decodes spent so far (each candidate decode counts as one).
+    """
+
+    model: GraspModel
+    shape: ShapeClass
+    rng: np.random.Generator
+    wrist_position: np.ndarray | None = None
+    ranges: PreshapeRanges = PreshapeRanges()
+    verification_rounds: int = 3
+    max_batches: int = 12
+    evaluations: int = 0
+
+    def __post_init__(self) -> None:
+        self._pool = np.empty((0, N_DIMS))
+
+    def verify(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The verification test: regenerate illegal fingers only, a bounded number of rounds.
+
+        Only the particles with an illegal finger are decoded again.
+
+        x : (B, 19) -> (x after regeneration, (B,) bool valid: legal and >= 2 contacts)
+        """
+        limit = self.model.settings.max_penetration
+        x = x.copy()
+        valid = np.zeros(len(x), dtype=bool)
+        todo = np.arange(len(x))
+        for round_ in range(self.verification_rounds + 1):
+            decoded = decode(self.model, x[todo], self.wrist_position)
+            self.evaluations += len(todo)
+            bad = decoded.finger_illegal(limit)
+            valid[todo] = ~bad.any(axis=1) & (decoded.n_contacts >= 2)
+            retry = bad.any(axis=1)
+            if round_ == self.verification_rounds or not retry.any():
+                break
+            todo, bad = todo[retry], bad[retry]
+            fresh = sample_fingers(self.model, len(todo), self.rng, self.ranges).reshape(-1, N_FINGERS, 3)
+            fingers = x[todo, :15].reshape(-1, N_FINGERS, 3)
+            fingers[bad] = fresh[bad]
+            x[todo, :15] = fingers.reshape(-1, 15)
+        return x, valid
+
+    def generate(self, n: int) -> tuple[np.ndarray, int]:
+        """Up to ``n`` verified particles.
+
+        Returns
+        -------
+        x : (n, 19) float
+            Valid particles first; when fewer than ``n`` were found within ``max_batches``
+            batches, the rest are unverified candidates (APSO will replace them).
+        n_valid : int
+        """
+        if n <= 0:
+            raise ValueError(f"n: expected a positive count, got {n}")
+        found: list[np.ndarray] = []
+        spare = np.empty((0, N_DIMS))
+        count = 0
+        for _ in range(self.max_batches):
+            batch = max(2 * (n - count), 16)
+            x, valid = self.verify(sample_particles(self.model, self.shape, batch, self.rng, self.ranges))
+            found.append(x[valid])
+            spare = x[~valid]
+            count += int(valid.sum())
+            if count >= n:
+                break
+        good = np.concatenate(found)[:n] if found else np.empty((0, N_DIMS))
+        if len(good) < n:
+            good = np.concatenate([good, spare[: n - len(good)]])
+        return good, min(count, n)
+
+    def draw(self, k: int) -> np.ndarray:
+        """``k`` verified particles from the reservoir (refilled in batches when low).
+
+        Raises GraspPlanningError when no valid particle can be generated.
+        """
+        if len(self._pool) < k:
+            fresh, n_valid = self.generate(max(2 * k, 16))
+            if n_valid == 0:
+                raise GraspPlanningError(
+                    f"object: GRG found no grasp with 2 or more fingertip contacts in {self.evaluations} "
+                    f"candidate decodes (shape class {self.shape.name}, smallest extent "
+                    f"{self.shape.extents[-1]:.3f} m); the object may not suit this hand"
+                )
+            self._pool = np.concatenate([self._pool, fresh[:n_valid]])
+        k_avail = min(k, len(self._pool))
+        out, self._pool = self._pool[:k_avail], self._pool[k_avail:]
+        if k_avail < k:  # a reservoir refill found fewer than k: repeat what it has
+            out = out[self.rng.integers(0, k_avail, k)]
+        return out

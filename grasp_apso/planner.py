@@ -1,0 +1,324 @@
+"""Planner API: ``plan(obj, pose, options, rng) -> GraspResult`` (no ROS).
+
+The planner prepares the object (signed-distance grid, cached by mesh hash), classifies
+its shape (GRG parameter factor), runs APSO or the simple PSO over particles of
+:mod:`grasp_apso.contacts` layout, and verifies the best grasp independently: the
+Ferrari-Canny epsilon with friction cones (:mod:`grasp_apso.quality`) and python-fcl
+collision checks of the links against the mesh and between fingers
+(:mod:`grasp_apso.collision`). Results are returned in the planning frame of ``pose``.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .collision import FclReport, mesh_bvh, verify_with_fcl
+from .contacts import N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model
+from .fitness import evaluate
+from .grg import GraspPlanningError, GuidedGenerator, ShapeClass, classify_shape
+from .hand import FINGER_NAMES, JOINT_NAMES, HandModel, load_hand
+from .quality import epsilon_quality
+from .swarm import IterationStats, SwarmOptions, run_swarm
+
+__all__ = [
+    "ALGORITHMS", "Contact", "GraspResult", "IterationStats", "PlanOptions", "PlanningError",
+    "plan", "prepare",
+]
+
+ALGORITHMS: tuple[str, ...] = ("apso", "pso")
+PlanningError = GraspPlanningError
+#: Objects whose smallest extent exceeds this cannot be held in a precision grasp.
+MAX_GRASPABLE_WIDTH = 0.16
+MIN_GRASPABLE_SIZE = 0.005
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """Everything a plan can be told (SI units). Invalid values raise ``ValueError``.
+
+    Attributes
+    ----------
+    algorithm : "apso" | "pso"
+    particles, iterations : int
+        Swarm size np (2..1000) and iterations nit (1..10000).
+    neighborhood_size : int
+        Particles per APSO neighbourhood (1..particles).
+    c1, c2 : float in [0, 4]
+        Acceleration constants toward the personal and global bests.
+    inertia : float in [0, 1]
+    stall_iterations : int
+        Iterations without improvement after which a neighbourhood's worst is replaced.
+    improvement : float
+        Fitness gain that counts as improvement.
+    max_evaluations : int
+        Cap on particle decodes (0: none), for equal-budget comparisons.
+    contact_tolerance : float, m
+        Fingertip contact tolerance and accepted penetration (0 < t <= 0.02).
+    friction : float
+        Coulomb friction coefficient for the fitness cone term and epsilon (0 < mu <= 5).
+    friction_edges : int
+        Edges of the linearised friction cones (3..64).
+    wrist_position : (3,) float or None, m
+        Fixed wrist position in the object frame; None computes it per particle.
+    """
+
+    algorithm: str = "apso"
+    particles: int = 60
+    iterations: int = 50
+    neighborhood_size: int = 5
+    c1: float = 1.0
+    c2: float = 1.5
+    inertia: float = 0.6
+    stall_iterations: int = 3
+    improvement: float = 1e-3
+    max_evaluations: int = 0
+    contact_tolerance: float = 0.002
+    friction: float = 0.5
+    friction_edges: int = 8
+    wrist_position: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm: unknown '{self.algorithm}' (expected one of {', '.join(ALGORITHMS)})")
+        for name, lo, hi in (("particles", 2, 1000), ("iterations", 1, 10000), ("friction_edges", 3, 64)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+                raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+        if not 0 < self.contact_tolerance <= 0.02:
+            raise ValueError(f"contact_tolerance: expected (0, 0.02] m, got {self.contact_tolerance!r}")
+        if not 0 < self.friction <= 5:
+            raise ValueError(f"friction: expected (0, 5], got {self.friction!r}")
+        if self.wrist_position is not None:
+            wp = np.asarray(self.wrist_position, dtype=float)
+            if wp.shape != (3,) or not np.all(np.isfinite(wp)):
+                raise ValueError(f"wrist_position: expected 3 finite numbers, got {self.wrist_position!r}")
+        self.swarm_options()  # validates the swarm parameters
+
+    def swarm_options(self) -> SwarmOptions:
+        return SwarmOptions(
+            particles=self.particles, iterations=self.iterations,
+            neighborhood_size=self.neighborhood_size, c1=self.c1, c2=self.c2,
+            inertia=self.inertia, stall_iterations=self.stall_iterations,
+            improvement=self.improvement, max_evaluations=self.max_evaluations,
+        )
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A fingertip contact in the planning frame (position m, outward unit normal)."""
+
+    finger: str
+    position: np.ndarray
+    normal: np.ndarray
+
+
+@dataclass(frozen=True)
+class GraspResult:
+    """A planned grasp; see ``docs/architecture.md`` for the field list."""
+
+    configuration: np.ndarray
+    joint_names: tuple[str, ...]
+    joint_positions: np.ndarray
+    standoff: float
+    wrist_pose: np.ndarray
+    wrist_in_object: np.ndarray
+    fitness: float
+    epsilon: float
+    force_closure: bool
+    contacts: tuple[Contact, ...]
+    valid: bool
+    history: tuple[IterationStats, ...]
+    iterations_run: int
+    evaluations: int
+    planning_time: float
+    preparation_time: float
+    cancelled: bool
+    algorithm: str
+    shape_class: str
+    fcl: FclReport
+    joints: np.ndarray
+    max_penetration: float
+    tip_gaps: np.ndarray = field(repr=False)
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.contacts)
+
+
+class GraspProblem:
+    """The optimisation problem of one plan: decode + fitness, and GRG draws."""
+
+    def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator):
+        self.model = model
+        self.shape = shape
+        self.mu = options.friction
+        self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
+        self.lower, self.upper = model.lower, model.upper
+        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position)
+        self._evaluations = 0
+
+    @property
+    def evaluations(self) -> int:
+        return self._evaluations + self.generator.evaluations
+
+    def decode(self, x: np.ndarray) -> DecodedGrasps:
+        return decode(self.model, x, self.wrist_position)
+
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        decoded = self.decode(x)
+        self._evaluations += len(x)
+        terms = evaluate(self.model, decoded, self.shape.wrist_score(decoded.wrist[:, :3, :3]), self.mu)
+        return terms.fitness, terms.active, decoded.n_contacts
+
+    def guided(self, k: int) -> np.ndarray:
+        return self.generator.draw(k)
+
+
+_BVH_CACHE: "OrderedDict[str, object]" = OrderedDict()
+_BVH_LOCK = threading.Lock()
+
+
+def _cached_bvh(obj):
+    with _BVH_LOCK:
+        bvh = _BVH_CACHE.get(obj.mesh_hash)
+        if bvh is None:
+            bvh = mesh_bvh(obj.mesh)
+            _BVH_CACHE[obj.mesh_hash] = bvh
+            while len(_BVH_CACHE) > 8:
+                _BVH_CACHE.popitem(last=False)
+        return bvh
+
+
+def prepare(obj, hand: HandModel | None = None, options: PlanOptions | None = None) -> GraspModel:
+    """Build (or fetch from the cache) everything fixed for planning on ``obj``."""
+    hand = hand or load_hand()
+    options = options or PlanOptions()
+    extents = np.asarray(obj.principal_extents, dtype=float)
+    if extents[-1] > MAX_GRASPABLE_WIDTH:
+        raise PlanningError(
+            f"object: too large for a precision grasp: its smallest extent is {extents[-1]:.3f} m, "
+            f"the hand opens to about {MAX_GRASPABLE_WIDTH:.2f} m"
+        )
+    if extents[0] < MIN_GRASPABLE_SIZE:
+        raise PlanningError(
+            f"object: too small for a precision grasp: its largest extent is {extents[0] * 1000:.1f} mm"
+        )
+    settings = ContactSettings(tolerance=options.contact_tolerance)
+    return make_grasp_model(hand, obj, settings)
+
+
+def plan(
+    obj,
+    pose: np.ndarray | None = None,
+    options: PlanOptions | None = None,
+    rng: np.random.Generator | None = None,
+    hand: HandModel | None = None,
+    progress: Callable[[IterationStats], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> GraspResult:
+    """Plan a precision grasp of ``obj`` with APSO (or the simple PSO).
+
+    Parameters
+    ----------
+    obj : GraspObject
+        The object in its own frame (metres).
+    pose : (4, 4) float, optional
+        Object frame -> planning frame; identity when None.
+    options : PlanOptions, optional
+    rng : np.random.Generator, optional
+        Source of all randomness; the same seed gives the same result.
+    hand : HandModel, optional
+        Hand description; the shipped paper hand when None.
+    progress : callable(IterationStats), optional
+        Called once per iteration.
+    should_stop : callable() -> bool, optional
+        Polled before every iteration; True stops the plan (``cancelled`` in the result).
+
+    Raises
+    ------
+    PlanningError
+        The object cannot be grasped by this hand (too large, too small, no valid
+        particle found by GRG).
+    ValueError
+        Invalid options or pose.
+    """
+    options = options or PlanOptions()
+    rng = rng if rng is not None else np.random.default_rng()
+    pose = np.eye(4) if pose is None else np.asarray(pose, dtype=float)
+    if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"pose: expected a finite (4, 4) transform, got shape {pose.shape}")
+
+    t0 = time.perf_counter()
+    model = prepare(obj, hand, options)
+    shape = classify_shape(obj)
+    preparation = time.perf_counter() - t0
+
+    t1 = time.perf_counter()
+    problem = GraspProblem(model, shape, options, rng)
+    adaptive = options.algorithm == "apso"
+    swarm = run_swarm(problem, options.swarm_options(), rng, adaptive, progress, should_stop)
+    best = swarm.best if np.isfinite(swarm.best_fitness) else np.clip(swarm.best, model.lower, model.upper)
+    result = _finish(model, problem, best[None, :], swarm, options, pose, shape, preparation, t1)
+    return result
+
+
+def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> GraspResult:
+    decoded = problem.decode(x)
+    terms = evaluate(model, decoded, shape.wrist_score(decoded.wrist[:, :3, :3]), options.friction)
+    obj = model.obj
+    contact = decoded.contact[0]
+    points = decoded.contact_points[0][contact]
+    normals = decoded.contact_normals[0][contact]
+    com = np.asarray(obj.center_of_mass, dtype=float)
+    if contact.sum() >= 2:
+        eps, closure = epsilon_quality(
+            points, normals, com, mu=options.friction, edges=options.friction_edges,
+            torque_scale=float(obj.characteristic_radius),
+        )
+    else:
+        eps, closure = 0.0, False
+    hand = model.hand
+    report = verify_with_fcl(
+        decoded.joints[0], np.array([*hand.link_radii[:2], hand.pad_radius]), _cached_bvh(obj),
+        FINGER_NAMES, penetration_tolerance=0.001, allowed_overlap=model.settings.finger_overlap,
+    )
+    rot, trans = pose[:3, :3], pose[:3, 3]
+    contacts = tuple(
+        Contact(finger=FINGER_NAMES[f], position=rot @ decoded.contact_points[0, f] + trans,
+                normal=rot @ decoded.contact_normals[0, f])
+        for f in np.flatnonzero(contact)
+    )
+    closed = decoded.closed[0]
+    wrist_in_object = decoded.wrist[0]
+    legal = bool(decoded.legal(model.settings.max_penetration)[0])
+    return GraspResult(
+        configuration=closed[:18].reshape(6, 3).copy(),
+        joint_names=JOINT_NAMES,
+        joint_positions=closed[:18].copy(),
+        standoff=float(closed[N_DIMS - 1]),
+        wrist_pose=pose @ wrist_in_object,
+        wrist_in_object=wrist_in_object,
+        fitness=float(terms.fitness[0]),
+        epsilon=float(eps),
+        force_closure=bool(closure),
+        contacts=contacts,
+        valid=legal and len(contacts) >= 2 and report.legal,
+        history=tuple(swarm.history),
+        iterations_run=swarm.iterations_run,
+        evaluations=problem.evaluations,
+        planning_time=time.perf_counter() - t1,
+        preparation_time=preparation,
+        cancelled=swarm.cancelled,
+        algorithm=options.algorithm,
+        shape_class=shape.name,
+        fcl=report,
+        joints=decoded.joints[0] @ rot.T + trans,
+        max_penetration=float(decoded.penetration[0].max()),
+        tip_gaps=decoded.tip_gap[0].copy(),
+    )

@@ -1,0 +1,211 @@
+"""Adaptive Particle Swarm Optimization and the simple PSO (paper section 4.3).
+
+Both share the paper's update (steps c-d), maximising the fitness::
+
+    v = v + c1 r1 (pbest - p) + c2 r2 (gbest - p)     r1, r2 ~ U(0, 1) per dimension
+    p = clamp(p + v)                                   velocity zeroed where clamped
+    v = w v                                            w in [0, 1]
+
+with the velocity also limited to ``velocity_max`` times each dimension's range.
+
+APSO (``adaptive=True``): GRG initialisation (step a), and after each evaluation the
+adaptive parts: inactive particles (fewer than 2 contacts or illegal) are taken off
+and replaced by new GRG particles, and the particles are split into fixed
+neighbourhoods of ``neighborhood_size``; a neighbourhood whose best fitness has not
+improved by ``improvement`` over ``stall_iterations`` iterations has its worst particle
+replaced by a new GRG particle. At most ``max_replacements`` of the swarm is replaced in
+one iteration (the lowest fitness first).
+
+Simple PSO (``adaptive=False``): uniform random initialisation, no replacement.
+
+An evaluation is one particle decoded (GRG candidates included), so the two can be
+given the same budget (``max_evaluations``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SwarmOptions:
+    """Swarm parameters (paper defaults np = 60, nit = 50, neighbourhoods of 5).
+
+    ``max_evaluations`` = 0 means no evaluation cap (only ``iterations``).
+    """
+
+    particles: int = 60
+    iterations: int = 50
+    neighborhood_size: int = 5
+    c1: float = 1.0
+    c2: float = 1.5
+    inertia: float = 0.6
+    stall_iterations: int = 3
+    improvement: float = 1e-3
+    velocity_init: float = 0.05
+    velocity_max: float = 0.25
+    max_evaluations: int = 0
+    max_replacements: float = 0.1
+
+    def __post_init__(self) -> None:
+        checks = {
+            "particles": 2 <= self.particles <= 1000,
+            "iterations": 1 <= self.iterations <= 10000,
+            "neighborhood_size": 1 <= self.neighborhood_size <= self.particles,
+            "c1": 0.0 <= self.c1 <= 4.0,
+            "c2": 0.0 <= self.c2 <= 4.0,
+            "inertia": 0.0 <= self.inertia <= 1.0,
+            "stall_iterations": 1 <= self.stall_iterations <= 1000,
+            "improvement": 0.0 <= self.improvement <= 1.0,
+            "velocity_init": 0.0 <= self.velocity_init <= 1.0,
+            "velocity_max": 0.0 < self.velocity_max <= 1.0,
+            "max_evaluations": 0 <= self.max_evaluations <= 10_000_000,
+            "max_replacements": 0.0 <= self.max_replacements <= 1.0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"{name} = {getattr(self, name)!r} is out of range")
+
+
+class Problem(Protocol):
+    """What the swarm optimises (implemented by the planner)."""
+
+    lower: np.ndarray  # (D,)
+    upper: np.ndarray  # (D,)
+    evaluations: int
+
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x (P, D) -> fitness (P,), active (P,) bool, fingertip contacts (P,) int."""
+
+    def guided(self, k: int) -> np.ndarray:
+        """k new GRG particles (k, D)."""
+
+
+@dataclass(frozen=True)
+class IterationStats:
+    """Progress after one iteration (1-based)."""
+
+    iteration: int
+    iterations: int
+    best_fitness: float
+    mean_fitness: float
+    active_particles: int
+    best_contacts: int
+    evaluations: int
+    elapsed: float
+    replaced: int = 0
+
+
+@dataclass
+class SwarmResult:
+    best: np.ndarray
+    best_fitness: float
+    history: list[IterationStats] = field(default_factory=list)
+    iterations_run: int = 0
+    cancelled: bool = False
+
+
+def run_swarm(
+    problem: Problem,
+    options: SwarmOptions,
+    rng: np.random.Generator,
+    adaptive: bool,
+    progress: Callable[[IterationStats], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> SwarmResult:
+    """Run APSO (``adaptive``) or the simple PSO for ``options.iterations`` iterations.
+
+    Stops early when ``should_stop()`` turns true (checked before every iteration, so a
+    cancel is honoured within one iteration) or the evaluation cap is reached.
+    """
+    start = time.perf_counter()
+    lo, hi = np.asarray(problem.lower, dtype=float), np.asarray(problem.upper, dtype=float)
+    span = hi - lo
+    n, dims = options.particles, len(lo)
+
+    def random_velocity(k: int) -> np.ndarray:
+        return rng.uniform(-1.0, 1.0, (k, dims)) * options.velocity_init * span
+
+    # a) initial population and velocities
+    pos = problem.guided(n) if adaptive else rng.uniform(lo, hi, (n, dims))
+    vel = random_velocity(n)
+    pbest = pos.copy()
+    pbest_f = np.full(n, -np.inf)
+    gbest = pos[0].copy()
+    gbest_f = -np.inf
+    gbest_nc = 0
+    groups = np.arange(n) // options.neighborhood_size
+    n_groups = int(groups.max()) + 1
+    group_hist: list[np.ndarray] = []
+    vmax = options.velocity_max * span
+    result = SwarmResult(best=gbest, best_fitness=gbest_f)
+
+    for it in range(1, options.iterations + 1):
+        if should_stop is not None and should_stop():
+            result.cancelled = True
+            break
+        if options.max_evaluations and problem.evaluations >= options.max_evaluations:
+            break
+        # b, c) evaluate, personal and global bests
+        fit, active, ncontacts = problem.evaluate(pos)
+        improved = fit > pbest_f
+        pbest[improved] = pos[improved]
+        pbest_f[improved] = fit[improved]
+        k = int(np.argmax(pbest_f))
+        if pbest_f[k] > gbest_f:
+            gbest, gbest_f = pbest[k].copy(), float(pbest_f[k])
+            gbest_nc = int(ncontacts[k]) if improved[k] else gbest_nc
+
+        # d) velocity and position update
+        r1 = rng.random((n, dims))
+        r2 = rng.random((n, dims))
+        vel = vel + options.c1 * r1 * (pbest - pos) + options.c2 * r2 * (gbest - pos)
+        vel = np.clip(vel, -vmax, vmax)
+        moved = pos + vel
+        clamped = (moved < lo) | (moved > hi)
+        pos = np.clip(moved, lo, hi)
+        vel[clamped] = 0.0
+        vel *= options.inertia
+
+        replaced = 0
+        if adaptive:
+            # Inactive particles are taken off; stalled neighbourhoods lose their worst.
+            out = ~active
+            group_best = np.array([pbest_f[groups == g].max() for g in range(n_groups)])
+            group_hist.append(group_best)
+            if len(group_hist) > options.stall_iterations:
+                gain = group_best - group_hist[-1 - options.stall_iterations]
+                for g in np.flatnonzero(gain < options.improvement):
+                    members = np.flatnonzero(groups == g)
+                    out[members[np.argmin(fit[members])]] = True
+                    group_hist[-1 - options.stall_iterations][g] = group_best[g] - 1.0  # restart its window
+            # At most max_replacements of the swarm per iteration, the worst first: GRG
+            # draws cost decodes, and the swarm needs continuity to converge.
+            idx = np.flatnonzero(out)
+            cap = int(np.ceil(options.max_replacements * n))
+            if idx.size > cap:
+                idx = idx[np.argsort(fit[idx])[:cap]]
+            if idx.size:
+                pos[idx] = problem.guided(idx.size)
+                vel[idx] = random_velocity(idx.size)
+                pbest[idx] = pos[idx]
+                pbest_f[idx] = -np.inf
+                replaced = idx.size
+
+        mean_active = float(fit[active].mean()) if active.any() else float("nan")
+        stats = IterationStats(
+            iteration=it, iterations=options.iterations, best_fitness=gbest_f,
+            mean_fitness=mean_active, active_particles=int(active.sum()), best_contacts=gbest_nc,
+            evaluations=problem.evaluations, elapsed=time.perf_counter() - start, replaced=replaced,
+        )
+        result.history.append(stats)
+        result.iterations_run = it
+        if progress is not None:
+            progress(stats)
+
+    result.best, result.best_fitness = gbest, gbest_f
+    return result
