@@ -109,7 +109,7 @@ if ! command -v make >/dev/null 2>&1 && ! command -v ninja >/dev/null 2>&1; then
 fi
 if [ "${#missing[@]}" -gt 0 ]; then
   printf '[setup] ERROR: missing: %s\n' "$(IFS=,; echo "${missing[*]}" | sed 's/,/, /g')" >&2
-  printf '[setup] install them, e.g. on Debian/Ubuntu:  apt-get install %s\n' "$(printf '%s\n' "${hint_pkgs[@]}" | sort -u | tr '\n' ' ')" >&2
+  printf '[setup] install them, e.g. on Debian/Ubuntu:  apt-get install %s\n' "$(printf '%s\n' "${hint_pkgs[@]}" | sort -u | tr '\n' ' ' | sed 's/ $//')" >&2
   exit 1
 fi
 say "    python $PY_VER ($(command -v "$PYTHON")), cmake ${CMAKE_VER}, C++: $CXX_BIN, C: $CC_BIN"
