@@ -532,3 +532,65 @@ def epsilon_quality_batch(
             pts[i][msk[i]], nrm[i][msk[i]], c, mu=mu, edges=edges, torque_scale=torque_scale
         )
     return eps, fc
+
+
+def _finger_subsets(n_fingers: int) -> list[np.ndarray]:
+    from itertools import combinations
+
+    return [np.array(c) for k in range(1, n_fingers + 1) for c in combinations(range(n_fingers), k)]
+
+
+def normal_wrench_residual(
+    points: np.ndarray, normals: np.ndarray, mask: np.ndarray, com: np.ndarray, torque_scale: float
+) -> np.ndarray:
+    """Distance from the origin to the convex hull of the contacts' normal wrenches.
+
+    Each contact pushes along its inward normal (the axis of its friction cone); its unit
+    wrench is ``w_i = [-n_i, (p_i - com) x (-n_i) / torque_scale]``. The result is 0 when
+    some non-negative squeeze along the normals balances both force and torque; with
+    friction and three or more non-collinear contacts such a grasp is force closure
+    (the squeeze lies strictly inside every cone). It grows as the best squeeze leaves
+    a net wrench. Exact: the min-norm point of at most F points is found by enumerating
+    the faces spanned by subsets of contacts (31 for F = 5), batched over particles.
+
+    Parameters
+    ----------
+    points, normals : (P, F, 3) float (m; outward unit normals)
+    mask : (P, F) bool
+    com : (3,) float, m
+    torque_scale : float, m (characteristic radius of the object)
+
+    Returns
+    -------
+    (P,) float >= 0 (inf for particles with no contact)
+    """
+    points, mask = _check_batch(points, mask)
+    normals = _check_normals(normals, points.shape)
+    com = _check_com(com)
+    if not torque_scale > 0:
+        raise ValueError(f"torque_scale: expected > 0, got {torque_scale!r}")
+    force = -np.where(mask[..., None], normals, 0.0)
+    torque = np.cross(np.where(mask[..., None], points, 0.0) - com, force) / torque_scale
+    wrench = np.concatenate([force, torque], axis=-1)  # (P, F, 6)
+    n_p, n_f = mask.shape
+    best = np.full(n_p, np.inf)
+    for subset in _finger_subsets(n_f):
+        usable = mask[:, subset].all(axis=1)
+        if not usable.any():
+            continue
+        w = wrench[usable][:, subset]  # (Q, k, 6)
+        k = len(subset)
+        if k == 1:
+            dist = np.linalg.norm(w[:, 0], axis=-1)
+        else:
+            # min |a W| s.t. sum a = 1 (KKT of the affine min-norm problem); keep a >= 0.
+            kkt = np.zeros((len(w), k + 1, k + 1))
+            kkt[:, :k, :k] = w @ w.transpose(0, 2, 1) + 1e-12 * np.eye(k)
+            kkt[:, :k, k] = kkt[:, k, :k] = 1.0
+            rhs = np.zeros((len(w), k + 1, 1))
+            rhs[:, k] = 1.0
+            a = np.linalg.solve(kkt, rhs)[:, :k, 0]
+            feasible = (a >= -1e-9).all(axis=1)
+            dist = np.where(feasible, np.linalg.norm(np.einsum("qk,qkd->qd", a, w), axis=-1), np.inf)
+        best[usable] = np.minimum(best[usable], dist)
+    return best
