@@ -13,7 +13,8 @@ GRG draws particles that are plausible grasps before any optimisation:
    fingers; a particle is kept when it makes at least 2 fingertip contacts.
 3. *Verification test*: a finger that penetrates the object (already at its pre-shape,
    or a link deeper than the tolerance) or collides with another finger gets new values
-   for that finger only, and the particle is decoded again (a bounded number of rounds).
+   for that finger only, drawn from a more open range each round, and the particle is
+   decoded again (a bounded number of rounds).
 
 Every loop is bounded; :class:`GraspPlanningError` says so when not enough valid
 particles can be found.
@@ -178,12 +179,26 @@ class PreshapeRanges:
     thumb_pivot_min : float
         Thumb pivot drawn in the top ``1 - thumb_pivot_min`` of its range (opposition).
     standoff_max : float, m
-        Standoff offsets drawn in [0, standoff_max].
+        Standoff offsets drawn in [0, max(standoff_max, standoff_per_width * width)],
+        width the object's smallest extent (the shape factor's standoff tuning: a big
+        object is held away from the palm so the fingers can curl around it).
+    standoff_per_width : float
     """
 
     flexion_max: float = 0.35
-    thumb_pivot_min: float = 0.35
+    thumb_pivot_min: float = 0.5
     standoff_max: float = 0.02
+    standoff_per_width: float = 0.6
+
+    def opened(self, factor: float) -> "PreshapeRanges":
+        """Ranges for regenerating an illegal finger: flexion range times ``factor``,
+        thumb pivot nearer its upright end (the thumb then leans away from the object)."""
+        return PreshapeRanges(
+            flexion_max=self.flexion_max * factor,
+            thumb_pivot_min=1.0 - (1.0 - self.thumb_pivot_min) * factor,
+            standoff_max=self.standoff_max,
+            standoff_per_width=self.standoff_per_width,
+        )
 
 
 def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: PreshapeRanges) -> np.ndarray:
@@ -203,7 +218,8 @@ def sample_particles(
     x = np.empty((n, N_DIMS))
     x[:, :15] = sample_fingers(model, n, rng, ranges)
     x[:, 15:18] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
-    x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(ranges.standoff_max, model.upper[STANDOFF_INDEX]), n)
+    top = max(ranges.standoff_max, ranges.standoff_per_width * float(shape.extents[-1]))
+    x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(top, model.upper[STANDOFF_INDEX]), n)
     return x
 
 
@@ -249,7 +265,8 @@ class GuidedGenerator:
             if round_ == self.verification_rounds or not retry.any():
                 break
             todo, bad = todo[retry], bad[retry]
-            fresh = sample_fingers(self.model, len(todo), self.rng, self.ranges).reshape(-1, N_FINGERS, 3)
+            ranges = self.ranges.opened(0.6 ** (round_ + 1))
+            fresh = sample_fingers(self.model, len(todo), self.rng, ranges).reshape(-1, N_FINGERS, 3)
             fingers = x[todo, :15].reshape(-1, N_FINGERS, 3)
             fingers[bad] = fresh[bad]
             x[todo, :15] = fingers.reshape(-1, 15)

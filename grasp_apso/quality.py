@@ -535,9 +535,10 @@ def epsilon_quality_batch(
 
 
 def _finger_subsets(n_fingers: int) -> list[np.ndarray]:
+    """All subsets of 2 or more fingers, grouped by size: [(S_k, k) arrays]."""
     from itertools import combinations
 
-    return [np.array(c) for k in range(1, n_fingers + 1) for c in combinations(range(n_fingers), k)]
+    return [np.array(list(combinations(range(n_fingers), k))) for k in range(2, n_fingers + 1)]
 
 
 def normal_wrench_residual(
@@ -573,24 +574,23 @@ def normal_wrench_residual(
     torque = np.cross(np.where(mask[..., None], points, 0.0) - com, force) / torque_scale
     wrench = np.concatenate([force, torque], axis=-1)  # (P, F, 6)
     n_p, n_f = mask.shape
-    best = np.full(n_p, np.inf)
-    for subset in _finger_subsets(n_f):
-        usable = mask[:, subset].all(axis=1)
+    # A single contact's wrench has norm >= 1: the hull of one point never beats that.
+    best = np.where(mask.any(axis=1), 1.0, np.inf)
+    for subsets in _finger_subsets(n_f):
+        k = subsets.shape[1]
+        usable = mask[:, subsets].all(axis=2)  # (P, S)
         if not usable.any():
             continue
-        w = wrench[usable][:, subset]  # (Q, k, 6)
-        k = len(subset)
-        if k == 1:
-            dist = np.linalg.norm(w[:, 0], axis=-1)
-        else:
-            # min |a W| s.t. sum a = 1 (KKT of the affine min-norm problem); keep a >= 0.
-            kkt = np.zeros((len(w), k + 1, k + 1))
-            kkt[:, :k, :k] = w @ w.transpose(0, 2, 1) + 1e-12 * np.eye(k)
-            kkt[:, :k, k] = kkt[:, k, :k] = 1.0
-            rhs = np.zeros((len(w), k + 1, 1))
-            rhs[:, k] = 1.0
-            a = np.linalg.solve(kkt, rhs)[:, :k, 0]
-            feasible = (a >= -1e-9).all(axis=1)
-            dist = np.where(feasible, np.linalg.norm(np.einsum("qk,qkd->qd", a, w), axis=-1), np.inf)
-        best[usable] = np.minimum(best[usable], dist)
+        pi, si = np.nonzero(usable)
+        w = wrench[pi[:, None], subsets[si]]  # (Q, k, 6), usable (particle, subset) pairs
+        # min |a W| s.t. sum a = 1 (KKT of the affine min-norm problem); keep a >= 0.
+        kkt = np.zeros((len(pi), k + 1, k + 1))
+        kkt[:, :k, :k] = w @ np.swapaxes(w, -1, -2) + 1e-12 * np.eye(k)
+        kkt[:, :k, k] = kkt[:, k, :k] = 1.0
+        rhs = np.zeros((len(pi), k + 1, 1))
+        rhs[:, k, 0] = 1.0
+        a = np.linalg.solve(kkt, rhs)[:, :k, 0]
+        dist = np.linalg.norm(np.einsum("qk,qkd->qd", a, w), axis=-1)
+        dist = np.where((a >= -1e-9).all(axis=-1), dist, np.inf)
+        np.minimum.at(best, pi, dist)
     return best
