@@ -259,9 +259,11 @@ class _FingerBasis:
 
     def __init__(self, model: GraspModel, origin: np.ndarray, ex: np.ndarray, ey: np.ndarray):
         self.hand = model.hand
-        self.origin = np.moveaxis(origin, -1, 0)  # (3, P, 5)
-        self.ex = np.moveaxis(ex, -1, 0)
-        self.ey = np.moveaxis(ey, -1, 0)
+        # float32 on the hot path: positions of ~0.1 m to ~10 nm, half the memory traffic.
+        self.origin = np.ascontiguousarray(np.moveaxis(origin, -1, 0), dtype=np.float32)  # (3, P, 5)
+        self.ex = np.ascontiguousarray(np.moveaxis(ex, -1, 0), dtype=np.float32)
+        self.ey = np.ascontiguousarray(np.moveaxis(ey, -1, 0), dtype=np.float32)
+        self.lengths = model.hand.link_lengths.astype(np.float32)
 
     def points(self, distal: np.ndarray, proximal: np.ndarray, coeff: np.ndarray) -> tuple[np.ndarray, ...]:
         """x, y, z of link points, each (P, 5, ..., K), for flexions (P, 5, ...)."""
@@ -272,7 +274,9 @@ class _FingerBasis:
              proximal + (hand.coupling_ratio + 1.0) * distal],
             axis=-1,
         )
-        lengths = hand.link_lengths.reshape((1, N_FINGERS) + (1,) * extra + (3,))
+        lengths = self.lengths.reshape((1, N_FINGERS) + (1,) * extra + (3,))
+        phi = phi.astype(np.float32)
+        coeff = coeff.astype(np.float32)
         u = (lengths * np.cos(phi)) @ coeff
         v = (lengths * np.sin(phi)) @ coeff
         shape = self.origin.shape[1:] + (1,) * (extra + 1)

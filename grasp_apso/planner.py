@@ -27,8 +27,8 @@ from .quality import epsilon_quality
 from .swarm import IterationStats, SwarmOptions, run_swarm
 
 __all__ = [
-    "ALGORITHMS", "Contact", "GraspResult", "IterationStats", "PlanOptions", "PlanningError",
-    "plan", "prepare",
+    "ALGORITHMS", "Contact", "GraspResult", "IterationStats", "Objective", "PlanOptions",
+    "PlanningError", "plan", "prepare",
 ]
 
 ALGORITHMS: tuple[str, ...] = ("apso", "pso")
@@ -322,3 +322,49 @@ def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> 
         max_penetration=float(decoded.penetration[0].max()),
         tip_gaps=decoded.tip_gap[0].copy(),
     )
+
+
+class Objective:
+    """The planner's fitness as a plain objective, for external optimisers (e.g. pyswarms).
+
+    ``objective(x)`` maps particles (P, 19) to fitness (P,) (maximised; a minimiser should
+    use ``-objective(x)``); ``lower`` / ``upper`` are the particle bounds; ``evaluations``
+    counts particle decodes. :meth:`result` verifies a best particle exactly as
+    :func:`plan` does and returns a :class:`GraspResult`.
+    """
+
+    def __init__(self, obj, options: PlanOptions | None = None, hand: HandModel | None = None):
+        self.options = options or PlanOptions()
+        t0 = time.perf_counter()
+        self.model = prepare(obj, hand, self.options)
+        self.shape = classify_shape(obj)
+        self.preparation_time = time.perf_counter() - t0
+        self.problem = GraspProblem(self.model, self.shape, self.options, np.random.default_rng(0))
+        self.lower, self.upper = self.model.lower, self.model.upper
+        self._started = time.perf_counter()
+
+    @property
+    def evaluations(self) -> int:
+        return self.problem.evaluations
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.ndim != 2 or x.shape[1] != N_DIMS:
+            raise ValueError(f"x: expected (P, {N_DIMS}), got {x.shape}")
+        return self.problem.evaluate(x)[0]
+
+    def result(
+        self, x_best: np.ndarray, pose: np.ndarray | None = None,
+        history: tuple[IterationStats, ...] = (), algorithm: str = "external",
+    ) -> GraspResult:
+        """Verify a particle (19,) and build the result (planning time since construction)."""
+        from .swarm import SwarmResult
+
+        x_best = np.clip(np.asarray(x_best, dtype=float).reshape(N_DIMS), self.lower, self.upper)
+        swarm = SwarmResult(best=x_best, best_fitness=float(self(x_best[None])[0]), history=list(history),
+                            iterations_run=len(history))
+        options = PlanOptions(**{**self.options.__dict__, "algorithm": "apso"})
+        res = _finish(self.model, self.problem, x_best[None, :], swarm, options,
+                      np.eye(4) if pose is None else np.asarray(pose, float), self.shape,
+                      self.preparation_time, self._started)
+        return GraspResult(**{**res.__dict__, "algorithm": algorithm})

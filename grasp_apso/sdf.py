@@ -92,8 +92,8 @@ class SignedDistanceGrid:
         idx = []
         frac = []
         for coord, o, n in zip((x, y, z), self.origin, n_cells):
-            g = (coord - o) * inv
-            gc = np.clip(g, 0.0, n - 1e-6)
+            g = (coord - coord.dtype.type(o)) * coord.dtype.type(inv)
+            gc = np.clip(g, 0.0, n - 1e-3)  # 1e-3 cell: safe in float32 too
             i = gc.astype(np.intp)
             frac.append(gc - i)
             idx.append(i)
