@@ -3,6 +3,7 @@
 # set-up (quick when already done), then the whole pytest suite in test/ against the
 # working tree, with an isolated ROS 2 environment for the node tests.
 # Extra arguments go to pytest, e.g.  bash scripts/test.sh -k interfaces -x
+# or  bash scripts/test.sh test/test_interfaces.py  (no arguments: testpaths = test).
 #
 # Environment:
 #   PYTEST_TIMEOUT=SECONDS     time limit per test (default 300)
@@ -31,7 +32,7 @@ export MPLBACKEND=Agg
 
 echo "[test] pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_LOG_DIR=$ROS_LOG_DIR, timeout ${PYTEST_TIMEOUT:-300} s per test)"
 status=0
-"$VENV/bin/python" -m pytest test --timeout="${PYTEST_TIMEOUT:-300}" "$@" || status=$?
+"$VENV/bin/python" -m pytest --timeout="${PYTEST_TIMEOUT:-300}" "$@" || status=$?
 
 if [ "$status" -eq 0 ]; then
   rm -rf "$ROS_LOG_DIR"
