@@ -1,0 +1,114 @@
+"""grasp_apso.conversions: messages <-> numpy, with real planner results (no DDS)."""
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip('rclpy')
+
+from geometry_msgs.msg import PoseStamped  # noqa: E402
+from grasp_apso_interfaces.action import PlanGrasp as PlanGraspAction  # noqa: E402
+from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from std_msgs.msg import Header  # noqa: E402
+from visualization_msgs.msg import Marker  # noqa: E402
+
+from grasp_apso import conversions, objects  # noqa: E402
+from grasp_apso.hand import JOINT_NAMES, load_hand  # noqa: E402
+from grasp_apso.objects import ObjectError  # noqa: E402
+from grasp_apso.planner import IterationStats, PlanOptions, plan  # noqa: E402
+
+
+@pytest.fixture(scope='module')
+def planned():
+    pose = objects.pose_to_matrix((0.4, -0.1, 0.8), (0.0, 0.0, math.sin(0.3), math.cos(0.3)))
+    result = plan(objects.builtin('cube'), pose=pose, options=PlanOptions(particles=20, iterations=4),
+                  rng=np.random.default_rng(5))
+    return pose, result
+
+
+def test_mesh_roundtrip_through_serialisation():
+    sphere = objects.builtin('sphere')
+    msg = conversions.arrays_to_mesh(sphere.mesh.vertices, sphere.mesh.faces)
+    back = deserialize_message(serialize_message(msg), type(msg))
+    vertices, triangles = conversions.mesh_to_arrays(back)
+    assert vertices.dtype == np.float64 and triangles.dtype == np.int64
+    assert np.array_equal(vertices, sphere.mesh.vertices)
+    assert np.array_equal(triangles, sphere.mesh.faces)
+
+
+def test_empty_mesh_gives_empty_arrays():
+    vertices, triangles = conversions.mesh_to_arrays(PlanGrasp.Request().mesh)
+    assert vertices.shape == (0, 3) and triangles.shape == (0, 3)
+
+
+def test_pose_stamped_to_matrix():
+    pose = PoseStamped()
+    pose.header.frame_id = 'table'
+    pose.pose.position.x, pose.pose.position.z = 0.5, 0.2
+    pose.pose.orientation.z, pose.pose.orientation.w = math.sin(0.25), math.cos(0.25)
+    frame, matrix = conversions.pose_stamped_to_matrix(pose)
+    assert frame == 'table'
+    assert np.allclose(matrix[:3, 3], (0.5, 0.0, 0.2))
+    assert np.allclose(matrix[:3, :3] @ (1, 0, 0), (math.cos(0.5), math.sin(0.5), 0.0))
+    back = conversions.matrix_to_pose_msg(matrix)
+    assert math.isclose(back.orientation.z, math.sin(0.25)) and math.isclose(back.position.x, 0.5)
+
+
+@pytest.mark.parametrize('quat, words', [((0, 0, 0, 0), 'zero quaternion'), ((0, 0, 1, 1), 'not unit')])
+def test_bad_quaternions_name_object_pose(quat, words):
+    pose = PoseStamped()
+    q = pose.pose.orientation
+    q.x, q.y, q.z, q.w = quat
+    with pytest.raises(ObjectError, match=f'object_pose: .*{words}'):
+        conversions.pose_stamped_to_matrix(pose)
+
+
+@pytest.mark.parametrize('msg_type', [PlanGrasp.Response, PlanGraspAction.Result])
+def test_fill_result(planned, msg_type):
+    pose, result = planned
+    header = Header(frame_id='table')
+    header.stamp.sec = 7
+    msg = conversions.fill_result(msg_type(), result, header)
+    assert list(msg.configuration.name) == list(JOINT_NAMES)
+    assert np.allclose(msg.configuration.position, result.joint_positions)
+    assert msg.configuration.header.frame_id == 'table' and msg.configuration.header.stamp.sec == 7
+    assert msg.wrist_pose.header.frame_id == 'table'
+    p = msg.wrist_pose.pose.position
+    assert np.allclose([p.x, p.y, p.z], result.wrist_pose[:3, 3])
+    back = objects.pose_to_matrix([p.x, p.y, p.z], [getattr(msg.wrist_pose.pose.orientation, a) for a in 'xyzw'])
+    assert np.allclose(back, result.wrist_pose, atol=1e-9)
+    assert len(msg.contact_points) == result.n_contacts == len(msg.contact_fingers)
+    assert msg.contact_fingers == [c.finger for c in result.contacts]
+    assert msg.fitness == result.fitness and msg.epsilon_quality == result.epsilon
+    assert msg.force_closure == result.force_closure and msg.iterations_run == result.iterations_run
+    assert math.isclose(msg.planning_time, result.planning_time + result.preparation_time)
+    serialize_message(msg)  # every field has the right type
+
+
+def test_progress_msg():
+    stats = IterationStats(iteration=3, iterations=10, best_fitness=0.5, mean_fitness=-float('inf'),
+                           active_particles=7, best_contacts=4, evaluations=60, elapsed=0.25)
+    msg = conversions.progress_msg(stats, 'abc', 'pso', Header(frame_id='world'))
+    assert (msg.request_id, msg.algorithm, msg.iteration, msg.iterations) == ('abc', 'pso', 3, 10)
+    assert msg.active_particles == 7 and msg.best_contacts == 4 and msg.elapsed == 0.25
+    assert msg.mean_fitness == -float('inf')
+    serialize_message(msg)
+
+
+def test_grasp_markers(planned):
+    _, result = planned
+    header = Header(frame_id='table')
+    markers = conversions.grasp_markers(result, header, load_hand()).markers
+    assert markers[0].action == Marker.DELETEALL
+    assert all(m.header.frame_id == 'table' for m in markers)
+    ids = [(m.ns, m.id) for m in markers[1:]]
+    assert len(ids) == len(set(ids))
+    links = [m for m in markers if m.ns == 'grasp_apso/links']
+    assert len(links) == 5 and all(m.type == Marker.LINE_LIST and len(m.points) == 8 for m in links)
+    tips = [m for m in markers if m.ns == 'grasp_apso/fingertips'][0]
+    assert tips.type == Marker.SPHERE_LIST and len(tips.points) == 5 == len(tips.colors)
+    assert np.allclose([[p.x, p.y, p.z] for p in tips.points], result.joints[:, -1])
+    normals = [m for m in markers if m.ns == 'grasp_apso/normals']
+    assert len(normals) == result.n_contacts and all(m.type == Marker.ARROW for m in normals)
+    serialize_message(conversions.grasp_markers(result, header, load_hand()))
