@@ -1,0 +1,197 @@
+"""Helpers shared by the node tests (test_node.py, test_node_process.py); not a test module.
+
+No mocks: real rclpy, real DDS (Fast DDS), real meshes. Waits are on events or on
+conditions polled with a deadline, never fixed sleeps.
+"""
+import math
+import os
+import sys
+import threading
+import time
+
+import numpy as np
+
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VENV_PYTHON = os.path.join(REPO_ROOT, '.venv', 'bin', 'python')
+PYTHON = VENV_PYTHON if os.path.exists(VENV_PYTHON) else sys.executable
+
+# scripts/test.sh sets these; a plain `pytest` run gets the same isolation (before rclpy.init).
+os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 101 + 1))
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+#: wait_for_service / discovery timeout (s): discovery once took 3.3 s here.
+DISCOVERY_TIMEOUT = 15.0
+
+
+def wait_for(predicate, timeout, interval=0.01):
+    """Poll ``predicate`` until it is true or ``timeout`` s passed; return its last value."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value or time.monotonic() >= deadline:
+            return value
+        time.sleep(interval)
+
+
+def wait_future(future, timeout):
+    """Wait for an rclpy Future completed by an executor spinning in another thread."""
+    done = threading.Event()
+    future.add_done_callback(lambda _f: done.set())
+    if not done.wait(timeout):
+        raise TimeoutError(f'no result within {timeout} s')
+    return future.result()
+
+
+def table_pose(position=(0.4, -0.1, 0.8), rpy=(0.3, -0.2, 0.5), frame='table'):
+    """A non-identity PoseStamped in frame ``frame`` and its 4x4 matrix."""
+    from geometry_msgs.msg import PoseStamped
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_euler('xyz', rpy)
+    pose = PoseStamped()
+    pose.header.frame_id = frame
+    pose.header.stamp.sec = 42
+    p = pose.pose.position
+    p.x, p.y, p.z = (float(v) for v in position)
+    q = pose.pose.orientation
+    q.x, q.y, q.z, q.w = (float(v) for v in rot.as_quat())
+    matrix = np.eye(4)
+    matrix[:3, :3] = rot.as_matrix()
+    matrix[:3, 3] = position
+    return pose, matrix
+
+
+def identity_pose(frame='world'):
+    from geometry_msgs.msg import PoseStamped
+
+    pose = PoseStamped()
+    pose.header.frame_id = frame
+    pose.pose.orientation.w = 1.0
+    return pose
+
+
+def quat_norm(q):
+    return math.sqrt(q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2)
+
+
+class ProgressCounter:
+    """Counts GraspProgress messages per request id (thread-safe, with a condition)."""
+
+    def __init__(self):
+        self._cond = threading.Condition()
+        self.counts = {}
+        self.iterations = {}
+
+    def __call__(self, msg):
+        with self._cond:
+            self.counts[msg.request_id] = self.counts.get(msg.request_id, 0) + 1
+            self.iterations.setdefault(msg.request_id, []).append(msg.iteration)
+            self._cond.notify_all()
+
+    def total(self):
+        with self._cond:
+            return sum(self.counts.values())
+
+    def wait_total(self, n, timeout):
+        """Wait until ``n`` messages (any request) arrived in all; return the total then."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while sum(self.counts.values()) < n:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
+            return sum(self.counts.values())
+
+    def count(self, request_id):
+        with self._cond:
+            return self.counts.get(request_id, 0)
+
+    def wait_count(self, request_id, n, timeout):
+        """Wait until ``n`` messages of ``request_id`` arrived; return the count then."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self.counts.get(request_id, 0) < n:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
+            return self.counts.get(request_id, 0)
+
+
+# A subscriber in its own process: prints "matched" once it sees a publisher, then one line
+# "progress <request_id> <iteration>" per message. Stops on SIGINT/SIGTERM.
+SUBSCRIBER_SCRIPT = r'''
+import sys, time
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from grasp_apso_interfaces.msg import GraspProgress
+
+rclpy.init()
+node = rclpy.create_node("progress_listener")
+topic = sys.argv[1]
+def on_msg(msg):
+    print(f"progress {msg.request_id} {msg.iteration}", flush=True)
+sub = node.create_subscription(GraspProgress, topic, on_msg,
+                               QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+print("started", flush=True)
+matched = False
+try:
+    while rclpy.ok():
+        rclpy.spin_once(node, timeout_sec=0.05)
+        if not matched and sub.get_publisher_count() > 0:
+            matched = True
+            print("matched", flush=True)
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+finally:
+    node.destroy_node()
+    rclpy.try_shutdown()
+'''
+
+
+def ros_env(**extra):
+    """Environment for subprocesses: the test's ROS isolation and the working tree first."""
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [REPO_ROOT] + [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p and p != REPO_ROOT])
+    env['PYTHONUNBUFFERED'] = '1'
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+class LineReader:
+    """Reads a subprocess's stdout lines in a thread; wait for lines matching a predicate."""
+
+    def __init__(self, stream):
+        self.lines = []
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._run, args=(stream,), daemon=True)
+        self._thread.start()
+
+    def _run(self, stream):
+        for line in iter(stream.readline, ''):
+            with self._cond:
+                self.lines.append(line.rstrip('\n'))
+                self._cond.notify_all()
+        with self._cond:
+            self.lines.append(None)  # EOF
+            self._cond.notify_all()
+
+    def wait(self, predicate, timeout):
+        """Wait until ``predicate(lines)`` is true; return it (falsy on timeout / EOF)."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                value = predicate([l for l in self.lines if l is not None])
+                if value or (self.lines and self.lines[-1] is None):
+                    return value
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return value
+                self._cond.wait(left)
+
+    def text(self):
+        with self._cond:
+            return '\n'.join(l for l in self.lines if l is not None)

@@ -1,0 +1,126 @@
+"""The node in its own process (``python -m grasp_apso.node`` with the shipped parameter
+file), a client in this process and a progress subscriber in a third process.
+
+Checks the result and the progress count seen by the other process, then that SIGINT
+(and SIGTERM in the middle of a plan) stops the node cleanly: exit status 0 within 10 s.
+"""
+import os
+import signal
+import subprocess
+import threading
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
+
+from node_helpers import (  # noqa: E402
+    DISCOVERY_TIMEOUT, PYTHON, REPO_ROOT, SUBSCRIBER_SCRIPT, LineReader, identity_pose, ros_env,
+    wait_future)
+
+from grasp_apso.hand import JOINT_NAMES  # noqa: E402
+from grasp_apso.node import PARAMETER_NAMES  # noqa: E402
+
+PARAMS_FILE = os.path.join(REPO_ROOT, 'config', 'grasp_apso.yaml')
+SERVICE = '/grasp_apso/plan_grasp'
+TOPIC = '/grasp_apso/progress'
+
+
+def test_parameter_file_lists_every_parameter():
+    import yaml
+
+    with open(PARAMS_FILE, encoding='utf-8') as handle:
+        data = yaml.safe_load(handle)
+    params = data['grasp_apso']['ros__parameters']
+    assert set(params) == set(PARAMETER_NAMES)
+
+
+def _start_node(*extra_args):
+    return subprocess.Popen(
+        [PYTHON, '-m', 'grasp_apso.node', '--ros-args', '--params-file', PARAMS_FILE, *extra_args],
+        cwd=REPO_ROOT, env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def _stop(proc, sig=signal.SIGINT, timeout=10.0):
+    """Send ``sig`` and wait; kill (and fail) if it does not exit in time."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        return proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=5.0)
+        return None
+
+
+@pytest.fixture
+def client_context():
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('grasp_apso_process_test_client', context=context)
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield node
+    finally:
+        executor.shutdown(timeout_sec=5.0)
+        thread.join(timeout=5.0)
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+def test_node_process_with_client_and_progress_subscriber_processes(client_context):
+    node_proc = _start_node('-p', 'particles:=20')
+    node_out = LineReader(node_proc.stdout)
+    listener = subprocess.Popen([PYTHON, '-c', SUBSCRIBER_SCRIPT, TOPIC], cwd=REPO_ROOT, env=ros_env(),
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    listener_out = LineReader(listener.stdout)
+    try:
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        assert listener_out.wait(lambda lines: 'matched' in lines, DISCOVERY_TIMEOUT), listener_out.text()
+
+        req = PlanGrasp.Request()
+        req.object_name = 'cube'
+        req.object_pose = identity_pose('world')
+        req.iterations, req.seed = 6, 11  # particles from the -p override
+        res = wait_future(client.call_async(req), 60.0)
+        assert res.success, res.message
+        assert list(res.configuration.name) == list(JOINT_NAMES)
+        assert res.wrist_pose.header.frame_id == 'world'
+        assert '20 particles' in node_out.wait(
+            lambda lines: next((l for l in lines if res.request_id in l and 'particles' in l), ''), 5.0)
+
+        def progress_lines(lines):
+            mine = [l for l in lines if l.startswith(f'progress {res.request_id} ')]
+            return mine if len(mine) >= res.iterations_run else None
+
+        got = listener_out.wait(progress_lines, 10.0)
+        assert got, listener_out.text()
+        assert [int(l.split()[2]) for l in got] == list(range(1, res.iterations_run + 1))
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+        _stop(listener, signal.SIGINT)
+    assert status == 0, f'node exit status {status}\n{node_out.text()}'
+    assert 'Traceback' not in node_out.text(), node_out.text()
+
+
+def test_sigterm_during_a_plan_exits_cleanly(client_context):
+    node_proc = _start_node()
+    node_out = LineReader(node_proc.stdout)
+    try:
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        req = PlanGrasp.Request()
+        req.object_name = 'sphere'
+        req.object_pose = identity_pose('world')
+        req.particles, req.iterations = 20, 10000
+        client.call_async(req)  # never answered: the node stops in the middle
+        assert node_out.wait(lambda lines: any('10000 iterations' in l for l in lines), 30.0), node_out.text()
+    finally:
+        status = _stop(node_proc, signal.SIGTERM)
+    assert status == 0, f'node exit status {status}\n{node_out.text()}'
+    assert 'Traceback' not in node_out.text(), node_out.text()
