@@ -185,8 +185,8 @@ class PreshapeRanges:
     standoff_per_width : float
     """
 
-    flexion_max: float = 0.35
-    thumb_pivot_min: float = 0.5
+    flexion_max: float = 0.6
+    thumb_pivot_min: float = 0.3
     standoff_max: float = 0.02
     standoff_per_width: float = 0.6
 
