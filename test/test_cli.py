@@ -1,0 +1,258 @@
+"""Command line ``grasp_apso_plan`` (grasp_apso.cli) and its pictures (grasp_apso.plotting).
+
+The real planner runs with small swarms (12 particles, 6 iterations) to stay fast.
+"""
+import json
+import os
+import subprocess
+import sys
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+import trimesh
+
+from grasp_apso import cli, plotting
+from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand
+
+SMALL = ["--particles", "12", "--iterations", "6"]
+HAND = load_hand()
+
+
+def _run(capsys, *argv):
+    code = cli.main([*argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _check_png(path, min_bytes=10_000):
+    assert os.path.isfile(path), path
+    assert os.path.getsize(path) > min_bytes, (path, os.path.getsize(path))
+    image = mpimg.imread(path)
+    height, width = image.shape[:2]
+    assert 300 <= height <= 4000 and 400 <= width <= 6000, image.shape
+    assert image.shape[2] in (3, 4)
+    # Not blank: a fair amount of non-white pixels, several colours.
+    rgb = image[..., :3]
+    assert (rgb.min(axis=2) < 0.9).mean() > 0.02
+    assert rgb.std() > 0.05
+
+
+def _table_rows(out):
+    """Rows of the configuration table: name -> list of (value, low, high) in degrees."""
+    rows = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if not parts or parts[0] not in (*FINGER_NAMES, "wrist"):
+            continue
+        cells = line.replace("*", " ").replace("[", " ").replace("]", " ").replace(",", " ").split()[1:]
+        if parts[0] == "wrist":
+            cells = [c for c in cells if c not in ("x", "y", "z")]
+        try:
+            numbers = [float(c) for c in cells]
+        except ValueError:
+            continue
+        if len(numbers) == 9:
+            rows[parts[0]] = [tuple(numbers[k:k + 3]) for k in range(0, 9, 3)]
+    return rows
+
+
+def test_apso_run_prints_the_table_and_writes_pictures_and_json(tmp_path, capsys):
+    out_dir = tmp_path / "pictures"
+    json_path = tmp_path / "result.json"
+    code, out, err = _run(capsys, "--object", "sphere", *SMALL, "--seed", "1",
+                          "--out", str(out_dir), "--json", str(json_path))
+    assert code == 0, err
+    # Header that explains the run.
+    assert "sphere (built-in): 1280 triangles" in out
+    assert "shape class sphere-like" in out
+    assert "APSO: 12 particles, 6 iterations, seed 1, friction mu 0.5" in out
+    # Configuration table: 5 fingers x (distal, proximal, pivot) + wrist x/y/z = 18 values,
+    # each with its Table 2 limits, values inside them.
+    rows = _table_rows(out)
+    assert list(rows) == [*FINGER_NAMES, "wrist"], out
+    lower, upper = np.degrees(HAND.lower), np.degrees(HAND.upper)
+    for r, name in enumerate(rows):
+        for k, (value, low, high) in enumerate(rows[name]):
+            j = 3 * r + k
+            assert (low, high) == (round(lower[j]), round(upper[j])), JOINT_NAMES[j]
+            assert low - 0.05 <= value <= high + 0.05, (JOINT_NAMES[j], value)
+    # Wrist pose, contacts and the quality block.
+    assert "position" in out and "quaternion" in out and " mm" in out
+    assert "Contacts:" in out
+    for label in ("fitness", "maximised", "epsilon", "Ferrari-Canny", "force closure", "fingertip contacts",
+                  "max penetration", "python-fcl check", "iterations         6 of 6", "evaluations",
+                  "planning time", "preparation time"):
+        assert label in out, label
+    # Progress: not a terminal here, so plain lines on stderr.
+    assert "iteration   1/6" in err and "iteration   6/6" in err
+    # Pictures, listed at the end.
+    grasp_png = out_dir / "sphere_apso_grasp.png"
+    conv_png = out_dir / "sphere_convergence.png"
+    for png in (grasp_png, conv_png):
+        _check_png(str(png))
+        assert str(png) in out
+    # JSON for scripts: SI units, joints within the hand limits.
+    doc = json.loads(json_path.read_text())
+    result = doc["results"]["apso"]
+    assert doc["options"] == {"particles": 12, "iterations": 6, "seed": 1, "friction": 0.5}
+    assert result["joint_names"] == list(JOINT_NAMES)
+    q = np.array(result["joint_positions"])
+    assert q.shape == (18,)
+    assert np.all(q >= HAND.lower - 1e-9) and np.all(q <= HAND.upper + 1e-9)
+    assert np.allclose(np.array(result["configuration"]).reshape(-1), q)
+    assert len(result["history"]) == 6 and result["history"][-1]["iteration"] == 6
+    assert np.isclose(np.linalg.norm(result["wrist_pose"]["orientation_xyzw"]), 1.0)
+    assert {c["finger"] for c in result["contacts"]} <= set(FINGER_NAMES)
+    assert result["n_contacts"] == len(result["contacts"])
+    assert 0.0 <= result["fitness"] <= 1.0 or not result["valid"]
+    for key in ("epsilon", "force_closure", "valid", "fcl", "planning_time", "evaluations"):
+        assert key in result
+
+
+def test_both_algorithms_are_compared(tmp_path, capsys):
+    code, out, err = _run(capsys, "--object", "cube", "--algorithm", "both", *SMALL, "--seed", "2",
+                          "--out", str(tmp_path))
+    assert code == 0, err
+    assert "APSO result:" in out and "PSO result:" in out
+    assert "Comparison (APSO, PSO; same object, seed 2" in out
+    for label in ("final best fitness", "best fitness at iter. 5", "epsilon", "force closure",
+                  "planning time (s)", "evaluations"):
+        line = next(l for l in out.splitlines() if l.strip().startswith(label))
+        assert len(line.split()) >= 3, line
+    assert "iter. 20" not in out  # only 6 iterations ran
+    assert len(_table_rows(out.split("PSO result:")[1])) == 6
+    for name in ("cube_apso_grasp.png", "cube_pso_grasp.png", "cube_convergence.png"):
+        _check_png(str(tmp_path / name))
+
+
+def test_same_seed_gives_the_same_configuration(tmp_path, capsys):
+    docs = []
+    for k in range(2):
+        path = tmp_path / f"run{k}.json"
+        code, _, err = _run(capsys, "--object", "barrel", *SMALL, "--seed", "7", "--no-plots",
+                            "--quiet", "--json", str(path))
+        assert code == 0, err
+        docs.append(json.loads(path.read_text())["results"]["apso"])
+    assert docs[0]["joint_positions"] == docs[1]["joint_positions"]
+    assert docs[0]["wrist_pose"] == docs[1]["wrist_pose"]
+    assert docs[0]["fitness"] == docs[1]["fitness"]
+
+
+def test_quiet_prints_one_line_per_run(capsys):
+    code, out, err = _run(capsys, "--object", "sphere", *SMALL, "--seed", "3", "--no-plots", "--quiet")
+    assert code == 0, err
+    lines = out.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sphere APSO: fitness ")
+    assert err == ""
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--object", "banana"], ["--object", "banana", "sphere, cube, barrel, fish"]),
+    (["--mesh", "/no/such/dir/part.stl"], ["--mesh", "not found", "part.stl"]),
+    (["--particles", "0"], ["--particles", "0"]),
+    (["--particles", "many"], ["--particles", "many"]),
+    (["--iterations", "-3"], ["--iterations", "-3"]),
+    (["--algorithm", "ga"], ["--algorithm", "ga"]),
+    (["--friction", "-1"], ["--friction"]),
+    (["--object", "cube", "--mesh", "x.stl"], ["--mesh", "--object"]),
+    (["--frobnicate"], ["--frobnicate"]),
+])
+def test_bad_input_exits_2_with_a_one_line_message(argv, words, tmp_path, capsys):
+    code, out, err = _run(capsys, *SMALL, *argv, "--out", str(tmp_path))
+    assert code == 2
+    assert out == ""
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("grasp_apso_plan: error: ")
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def _box_file(path, edge):
+    trimesh.creation.box(extents=(edge, edge * 0.8, edge * 0.6)).export(str(path))
+
+
+def test_mesh_file_and_mesh_scale(tmp_path, capsys):
+    metres = tmp_path / "block.stl"
+    _box_file(metres, 0.05)
+    code, out, err = _run(capsys, "--mesh", str(metres), *SMALL, "--seed", "0", "--out", str(tmp_path))
+    assert code == 0, err
+    assert "block (mesh file " in out and "12 triangles, 50 x 40 x 30 mm" in out
+    _check_png(str(tmp_path / "block_apso_grasp.png"))
+    # The same block in millimetres: too large unless scaled, and the message says so.
+    mm = tmp_path / "block_mm.stl"
+    _box_file(mm, 50.0)
+    code, out, err = _run(capsys, "--mesh", str(mm), *SMALL, "--no-plots")
+    assert code == 2 and "too large" in err and "--mesh-scale 0.001" in err and "Traceback" not in err
+    code, out, err = _run(capsys, "--mesh", str(mm), "--mesh-scale", "0.001", *SMALL, "--no-plots")
+    assert code == 0, err
+    assert "50 x 40 x 30 mm" in out
+
+
+def test_module_runs_as_a_script_with_json_on_stdout(tmp_path):
+    """One real process: ``python -m grasp_apso.cli`` (what the console script calls)."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "grasp_apso.cli", "--object", "fish", *SMALL, "--seed", "0",
+         "--out", str(tmp_path), "--json", "-"],
+        capture_output=True, text=True, timeout=240, cwd=str(tmp_path),
+    )
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)  # the report went to stderr
+    assert doc["object"]["name"] == "fish" and doc["object"]["shape_class"]
+    assert "APSO result:" in proc.stderr and "Traceback" not in proc.stderr
+    assert len(doc["results"]["apso"]["joint_positions"]) == 18
+    for path in doc["pictures"]:
+        _check_png(path)
+
+
+# ----------------------------------------------------------------------------- plotting
+def test_view_angles_put_the_requested_direction_up():
+    from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import proj3d
+
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        direction = rng.normal(size=3)
+        up = np.cross(direction, rng.normal(size=3))
+        elev, azim, roll = plotting.view_angles(direction, up)
+        ax = Figure().add_subplot(projection="3d")
+        ax.set_xlim(-1, 1), ax.set_ylim(-1, 1), ax.set_zlim(-1, 1)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=elev, azim=azim, roll=roll)
+        up = up / np.linalg.norm(up)
+        x, y, _ = proj3d.proj_transform(*up, ax.get_proj())
+        x0, y0, _ = proj3d.proj_transform(0, 0, 0, ax.get_proj())
+        assert y - y0 > 0 and abs(x - x0) < 1e-6 * max(1.0, abs(y - y0)) + 1e-9
+
+
+def test_large_meshes_are_decimated_for_drawing():
+    mesh = trimesh.creation.icosphere(subdivisions=5)  # 20480 triangles
+    verts, faces = plotting.decimate_for_drawing(mesh.vertices, mesh.faces, 3000)
+    assert 200 < len(faces) <= 3000
+    assert faces.max() < len(verts)
+    radii = np.linalg.norm(verts, axis=1)
+    assert np.all(np.abs(radii - 1.0) < 0.1)  # still a sphere
+
+
+def test_plot_convergence_accepts_plain_histories(tmp_path):
+    runs = {
+        "A": {"best": np.linspace(-1.0, 0.8, 30), "mean": np.linspace(-1.5, 0.5, 30)},
+        "B": {"best": np.linspace(0.2, 0.6, 30)},
+    }
+    path = plotting.plot_convergence(runs, tmp_path / "sub" / "conv.png", title="test")
+    assert path == str(tmp_path / "sub" / "conv.png")
+    _check_png(path)
+    with pytest.raises(ValueError):
+        plotting.plot_convergence({}, tmp_path / "none.png")
+
+
+def test_grasp_title_names_the_quality():
+    class R:
+        algorithm, fitness, epsilon, force_closure, valid, cancelled = "apso", 0.8123, 0.0456, True, True, False
+        contacts = ()
+    title = plotting.grasp_title(R(), "sphere")
+    assert "sphere" in title and "APSO" in title and "0.812" in title and "0.046" in title
+    assert "force closure: yes" in title and "0 contacts: none" in title
