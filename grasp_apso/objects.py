@@ -1,4 +1,4 @@
-"""Objects to grasp: validated meshes, built-in objects, mesh files and poses.
+"""Objects to grasp: validated meshes and the built-in objects.
 
 An object is a triangle mesh in its own frame (the *object frame*), in metres. It is
 validated once, at the edge, and then held in an immutable :class:`GraspObject`
@@ -10,23 +10,30 @@ Constructors (module functions; the same functions are also available as
 
 - :func:`from_arrays` -- vertices and triangles, e.g. from a ``shape_msgs/Mesh``.
 - :func:`from_file` -- an STL / OBJ / PLY / OFF file given as a path or ``file://`` URI,
-  optionally confined to an allowed directory.
-- :func:`builtin` -- the paper's four test objects, :data:`BUILTIN_OBJECTS`.
+  optionally confined to an allowed directory (:mod:`grasp_apso.mesh_files`).
+- :func:`builtin` -- the paper's four test objects, :data:`BUILTIN_OBJECTS`, whose
+  meshes :mod:`grasp_apso.shapes` builds.
 
 Every invalid object raises :class:`ObjectError` (a ``ValueError``) whose message starts
 with the offending request field (``mesh:``, ``mesh_uri:``, ``object_name:``,
 ``object_pose:``), for example ``"mesh: triangle 3 index 99 out of range (8 vertices)"``.
 
-Pose utilities (:func:`pose_to_matrix`, :func:`matrix_to_pose`, :func:`transform_points`,
-:func:`transform_vectors`) convert between ``geometry_msgs/Pose``-like position +
-quaternion (x, y, z, w) and 4x4 homogeneous transforms. The planner works in the object
-frame; the object pose (object -> planning frame) is applied to the results only.
+The pose utilities of :mod:`grasp_apso.poses` (:func:`pose_to_matrix`,
+:func:`matrix_to_pose`, :func:`transform_points`, :func:`transform_vectors`) and
+:func:`from_file` are re-exported here, so ``from grasp_apso.objects import X`` works
+for every name in ``__all__``. They are bound on first use (``__getattr__`` below)
+because those modules import :class:`ObjectError` and :func:`from_arrays` from this one:
+importing them here at load time would make an import cycle.
 
 Decisions
 ---------
 - Uniform density. When the mesh is a closed, consistently oriented solid
   (``watertight``), the centre of mass is the mesh's volume centroid; otherwise it is the
   centroid of the mesh's convex hull.
+- Winding repair of closed meshes is trimesh's (``trimesh.repair.fix_normals`` with
+  ``multibody=True``, which needs networkx): each closed piece is made consistently
+  wound with positive volume (nested shells, i.e. hollow solids, are not supported:
+  their inner shell also ends up outward).
 - ``principal_extents`` / ``principal_axes`` come from the smallest of three bounding
   boxes: axis-aligned, trimesh's oriented box (``trimesh.bounds.oriented_bounds``, a
   heuristic) and the principal-component box. Note that in trimesh 5.2
@@ -43,18 +50,34 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import io
-import os
-import re
-import urllib.parse
+import importlib
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import trimesh
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial.transform import Rotation
+
+from . import shapes
+from .shapes import (  # noqa: F401  re-exported: the shapes' sizes
+    BARREL_BULGE,
+    BARREL_DIAMETER,
+    BARREL_LENGTH,
+    CUBE_EDGE,
+    FISH_HEIGHT,
+    FISH_LENGTH,
+    FISH_WIDTH,
+    SPHERE_DIAMETER,
+)
+
+if TYPE_CHECKING:  # what __getattr__ binds on first use, for type checkers and IDEs
+    from .mesh_files import DEFAULT_MAX_BYTES, PathLike, from_file  # noqa: F401
+    from .poses import (  # noqa: F401
+        QUATERNION_NORM_TOLERANCE,
+        matrix_to_pose,
+        pose_to_matrix,
+        transform_points,
+        transform_vectors,
+    )
 
 __all__ = [
     "BUILTIN_OBJECTS",
@@ -80,22 +103,15 @@ MESH_FORMATS: tuple[str, ...] = ("stl", "obj", "ply", "off")
 #: Minimum thickness (m) of an object along its thinnest oriented-bounding-box axis.
 MIN_THICKNESS: float = 1e-3
 
-#: Default limits for meshes and mesh files.
+#: Default limit on the number of triangles of a mesh (``DEFAULT_MAX_BYTES``, the one
+#: on the size of a mesh file, is in :mod:`grasp_apso.mesh_files`).
 DEFAULT_MAX_TRIANGLES: int = 200_000
-DEFAULT_MAX_BYTES: int = 50_000_000
 
 #: Triangles with an area at or below this (m^2) count as zero-area.
 _ZERO_AREA: float = 1e-14
 
 #: Hull vertices above which the oriented-box orientation is searched on a subset.
 _OBB_MAX_POINTS: int = 2000
-
-#: Tolerance on the quaternion norm: |norm - 1| above this is rejected, not normalised.
-QUATERNION_NORM_TOLERANCE: float = 1e-3
-
-_URI_SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.\-]*)://")
-
-PathLike = Union[str, "os.PathLike[str]"]
 
 
 class ObjectError(ValueError):
@@ -239,6 +255,8 @@ class GraspObject:
     @classmethod
     def from_file(cls, *args: Any, **kwargs: Any) -> "GraspObject":
         """Alias of :func:`grasp_apso.objects.from_file`."""
+        from .mesh_files import from_file  # mesh_files imports this module
+
         return from_file(*args, **kwargs)
 
     @classmethod
@@ -408,84 +426,19 @@ def _check_raw_mesh(
 
 
 # --------------------------------------------------------------------------------------
-# Orientation (winding) repair, without networkx
+# Orientation (winding) repair
 # --------------------------------------------------------------------------------------
-
-
-def _consistent_flips(
-    faces: np.ndarray, adjacency: np.ndarray, shared_edges: np.ndarray
-) -> np.ndarray | None:
-    """Which faces to flip so that all adjacent faces have consistent winding.
-
-    Two faces sharing an edge are consistent when they traverse it in opposite
-    directions. Each face gets two states (kept, flipped); a graph on the 2F states links
-    compatible states, and its connected components give the flips. The first face of
-    each connected piece keeps its winding.
-
-    Parameters
-    ----------
-    faces : (F, 3) int
-    adjacency : (A, 2) int
-        Pairs of faces sharing an edge (``mesh.face_adjacency``).
-    shared_edges : (A, 2) int
-        The shared edge (vertex pair) of each pair (``mesh.face_adjacency_edges``).
-
-    Returns
-    -------
-    (F,) bool or None
-        Faces to flip, or None when the surface is not orientable.
-    """
-    n_faces = len(faces)
-    if len(adjacency) == 0:
-        return np.zeros(n_faces, dtype=bool)
-    u, v = shared_edges[:, 0], shared_edges[:, 1]
-
-    def has_forward_edge(face_ids: np.ndarray) -> np.ndarray:
-        f = faces[face_ids]
-        nxt = np.roll(f, -1, axis=1)
-        return ((f == u[:, None]) & (nxt == v[:, None])).any(axis=1)
-
-    a, b = adjacency[:, 0], adjacency[:, 1]
-    inconsistent = has_forward_edge(a) == has_forward_edge(b)
-    b_state = b + n_faces * inconsistent
-    b_other = b + n_faces * ~inconsistent
-    rows = np.concatenate([a, a + n_faces])
-    cols = np.concatenate([b_state, b_other])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(2 * n_faces, 2 * n_faces))
-    _, labels = connected_components(graph, directed=False)
-    if np.any(labels[:n_faces] == labels[n_faces:]):
-        return None
-    plain = coo_matrix((np.ones(len(a)), (a, b)), shape=(n_faces, n_faces))
-    _, pieces = connected_components(plain, directed=False)
-    first_face = np.full(pieces.max() + 1, n_faces, dtype=np.int64)
-    np.minimum.at(first_face, pieces, np.arange(n_faces))
-    return labels[:n_faces] != labels[first_face[pieces]]
-
-
-def _signed_volumes(vertices: np.ndarray, faces: np.ndarray, pieces: np.ndarray) -> np.ndarray:
-    """Signed volume (m^3) of each connected piece of a closed mesh.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float, m
-    faces : (F, 3) int
-    pieces : (F,) int
-        Piece label of each face, 0..P-1.
-
-    Returns
-    -------
-    (P,) float, m^3
-    """
-    c = vertices[faces]
-    per_face = np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])) / 6.0
-    return np.bincount(pieces, weights=per_face)
 
 
 def _orient_outward(mesh: trimesh.Trimesh) -> bool:
     """Make a closed mesh's winding consistent with outward normals, in place.
 
-    Each connected piece is oriented to have positive volume (nested shells, i.e.
-    hollow solids, are not supported: their inner shell also ends up outward).
+    ``trimesh.repair.fix_normals(mesh, multibody=True)``: faces re-wound consistently
+    across shared edges, then each connected piece turned to have positive volume
+    (nested shells, i.e. hollow solids, are not supported: their inner shell also ends
+    up outward). Cost: for a consistently wound mesh, only the per-piece volume check;
+    otherwise trimesh walks the faces in Python, about 0.1 ms per face (some 25 s for
+    200,000 triangles).
 
     Parameters
     ----------
@@ -496,23 +449,16 @@ def _orient_outward(mesh: trimesh.Trimesh) -> bool:
     -------
     bool
         True when the mesh is now a consistently oriented solid of positive volume.
+        When it cannot be (a non-orientable surface), the faces are left as given.
     """
-    faces = np.array(mesh.faces, dtype=np.int64)
-    flips = _consistent_flips(faces, mesh.face_adjacency, mesh.face_adjacency_edges)
-    if flips is None:
-        return False
-    faces[flips] = faces[flips][:, ::-1]
-    plain = coo_matrix(
-        (np.ones(len(mesh.face_adjacency)), tuple(mesh.face_adjacency.T)),
-        shape=(len(faces), len(faces)),
-    )
-    _, pieces = connected_components(plain, directed=False)
-    inverted = _signed_volumes(np.asarray(mesh.vertices), faces, pieces) < 0.0
-    flip_piece = inverted[pieces]
-    faces[flip_piece] = faces[flip_piece][:, ::-1]
-    if flips.any() or flip_piece.any():
+    faces = mesh.faces.copy()
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    if not mesh.is_winding_consistent:
+        # Non-orientable: trimesh leaves it re-wound part way, depending on where its
+        # walk started; keep the faces as they came (and so a stable mesh_hash).
         mesh.faces = faces
-    return bool(mesh.is_winding_consistent and mesh.volume > 0.0)
+        return False
+    return bool(mesh.volume > 0.0)
 
 
 # --------------------------------------------------------------------------------------
@@ -709,418 +655,15 @@ def from_arrays(
 
 
 # --------------------------------------------------------------------------------------
-# Mesh files
-# --------------------------------------------------------------------------------------
-
-
-def _uri_to_path(path: PathLike) -> str:
-    """Turn a path or ``file://`` URI into a filesystem path string.
-
-    Raises
-    ------
-    ObjectError
-        Empty path, NUL bytes, or a URI scheme other than ``file``.
-    """
-    if isinstance(path, os.PathLike):
-        path = os.fspath(path)
-    if not isinstance(path, str):
-        raise ObjectError(f"mesh_uri: expected a path or file:// URI, got {type(path).__name__}")
-    if not path.strip():
-        raise ObjectError("mesh_uri: empty")
-    match = _URI_SCHEME.match(path)
-    if match:
-        scheme = match.group(1).lower()
-        if scheme != "file":
-            raise ObjectError(
-                f"mesh_uri: unsupported URI scheme '{scheme}://' (expected a file path or "
-                f"a file:// URI): {path}"
-            )
-        parsed = urllib.parse.urlparse(path)
-        if parsed.netloc not in ("", "localhost"):
-            raise ObjectError(
-                f"mesh_uri: remote file:// host '{parsed.netloc}' not supported: {path}"
-            )
-        path = urllib.parse.unquote(parsed.path)
-        if not path:
-            raise ObjectError("mesh_uri: empty")
-    if "\x00" in path:
-        raise ObjectError("mesh_uri: path contains a NUL character")
-    return path
-
-
-def _resolve_inside(path: str, allowed_dir: PathLike | None) -> str:
-    """Resolve symlinks and ``..``; refuse a result outside ``allowed_dir``.
-
-    Parameters
-    ----------
-    path : str
-        Requested path (relative paths are taken from the current directory).
-    allowed_dir : path or None
-        Directory the resolved file must lie in; None allows any path.
-
-    Returns
-    -------
-    str
-        The resolved absolute path.
-    """
-    real = os.path.realpath(path)
-    if allowed_dir is None:
-        return real
-    allowed = os.path.realpath(os.fspath(allowed_dir))
-    if not os.path.isdir(allowed):
-        raise ObjectError(f"mesh_uri: the allowed mesh directory does not exist: {allowed}")
-    if os.path.commonpath([real, allowed]) != allowed:
-        raise ObjectError(f"mesh_uri: outside the allowed mesh directory {allowed}: {path}")
-    return real
-
-
-def _file_format(path: str) -> str:
-    """Lower-case extension of ``path`` (no dot) if it is in :data:`MESH_FORMATS`."""
-    ext = os.path.splitext(path)[1].lower()
-    if ext.lstrip(".") not in MESH_FORMATS:
-        shown = ext if ext else "(none)"
-        raise ObjectError(
-            f"mesh_uri: unknown format '{shown}' (expected {', '.join(MESH_FORMATS)}): {path}"
-        )
-    return ext.lstrip(".")
-
-
-def _read_bytes(real: str, shown: str, max_bytes: int) -> bytes:
-    """Read a whole file of at most ``max_bytes`` bytes.
-
-    Parameters
-    ----------
-    real : str
-        Resolved path to open.
-    shown : str
-        Path to name in error messages (the one the caller gave).
-    max_bytes : int
-        Largest accepted file size, bytes.
-    """
-    if not os.path.exists(real):
-        raise ObjectError(f"mesh_uri: file not found: {shown}")
-    if not os.path.isfile(real):
-        raise ObjectError(f"mesh_uri: not a regular file: {shown}")
-    try:
-        with open(real, "rb") as handle:
-            size = os.fstat(handle.fileno()).st_size
-            if size > max_bytes:
-                raise ObjectError(
-                    f"mesh_uri: file is {size} bytes, exceeds the limit of {max_bytes}: {shown}"
-                )
-            data = handle.read(max_bytes + 1)
-    except OSError as exc:
-        raise ObjectError(f"mesh_uri: cannot read file ({exc.strerror or exc}): {shown}") from None
-    if len(data) > max_bytes:
-        raise ObjectError(f"mesh_uri: file exceeds the limit of {max_bytes} bytes: {shown}")
-    if not data:
-        raise ObjectError(f"mesh_uri: file is empty: {shown}")
-    return data
-
-
-def _parse_mesh(data: bytes, file_type: str, shown: str) -> trimesh.Trimesh:
-    """Parse mesh file bytes with trimesh; concatenate a Scene's meshes.
-
-    Returns
-    -------
-    trimesh.Trimesh
-        Unprocessed mesh with at least one triangle.
-    """
-    try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=file_type, process=False)
-    except Exception as exc:  # trimesh parsers raise many exception types
-        # An ImportError means trimesh wanted an optional decoder for unrecognised bytes.
-        if isinstance(exc, ImportError):
-            detail = "unrecognised content"
-        else:
-            detail = f"{type(exc).__name__}: {exc}"
-        raise ObjectError(
-            f"mesh_uri: cannot parse as {file_type.upper()} ({detail}): {shown}"
-        ) from None
-    if isinstance(loaded, trimesh.Scene):
-        parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
-        loaded = trimesh.util.concatenate(parts) if parts else None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise ObjectError(f"mesh_uri: file contains no triangles: {shown}")
-    return loaded
-
-
-def from_file(
-    path: PathLike,
-    allowed_dir: PathLike | None = None,
-    max_triangles: int = DEFAULT_MAX_TRIANGLES,
-    max_bytes: int = DEFAULT_MAX_BYTES,
-    name: str | None = None,
-) -> GraspObject:
-    """Load, validate and build a :class:`GraspObject` from an STL/OBJ/PLY/OFF file.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        File path or ``file://`` URI (percent-encoding decoded; host empty or
-        ``localhost``). Other schemes (``package://``, ``http://`` ...) are refused.
-        The vertices are read as metres in the object frame.
-    allowed_dir : str or os.PathLike or None
-        When given, the file, after resolving symlinks and ``..`` (``os.path.realpath``),
-        must lie inside this directory.
-    max_triangles : int
-        Largest accepted number of triangles.
-    max_bytes : int
-        Largest accepted file size, bytes.
-    name : str or None
-        Object name; default the file name without extension.
-
-    Returns
-    -------
-    GraspObject
-
-    Raises
-    ------
-    ObjectError
-        ``mesh_uri: ...`` for a bad URI, a file outside ``allowed_dir``, an unknown
-        extension, a missing, unreadable, empty or too large file, a file trimesh cannot
-        parse or without triangles; ``mesh: ... (mesh_uri: <path>)`` when the mesh itself
-        is invalid (see :func:`from_arrays`).
-
-    Notes
-    -----
-    The format comes from the extension of the path as given (case-insensitive). The
-    containment check resolves symlinks at call time. A multi-geometry file (a trimesh
-    Scene) is flattened with its transforms and concatenated.
-    """
-    limit = _check_limit(max_triangles)
-    if isinstance(max_bytes, bool) or not isinstance(max_bytes, (int, np.integer)) or max_bytes < 1:
-        raise ValueError(f"max_bytes: expected a positive integer, got {max_bytes!r}")
-    requested = _uri_to_path(path)
-    real = _resolve_inside(requested, allowed_dir)
-    file_type = _file_format(requested)
-    data = _read_bytes(real, requested, int(max_bytes))
-    loaded = _parse_mesh(data, file_type, requested)
-    stem = os.path.splitext(os.path.basename(requested))[0] or "mesh"
-    try:
-        return from_arrays(loaded.vertices, loaded.faces, name=name or stem, max_triangles=limit)
-    except ObjectError as exc:
-        raise ObjectError(f"{exc} (mesh_uri: {requested})") from None
-
-
-# --------------------------------------------------------------------------------------
 # Built-in objects (paper section 5: sphere, cube, barrel, fish)
 # --------------------------------------------------------------------------------------
 
-SPHERE_DIAMETER = 0.05  #: m
-CUBE_EDGE = 0.07  #: m
-BARREL_LENGTH = 0.11  #: m, along the object z axis
-BARREL_DIAMETER = 0.03  #: m, at the middle (largest)
-BARREL_BULGE = 0.10  #: middle diameter is 10 % larger than the end diameter
-FISH_LENGTH = 0.29  #: m, along x (head toward +x)
-FISH_WIDTH = 0.06  #: m, along y
-FISH_HEIGHT = 0.07  #: m, along z
-_SECTIONS = 48  #: vertices around a lofted cross-section (a multiple of 4)
-
-
-def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
-    """Side triangles joining consecutive rings of a lofted tube.
-
-    Vertex ``j * n_around + k`` is point k of ring j.
-
-    Returns
-    -------
-    (2 * (n_rings - 1) * n_around, 3) int
-    """
-    j, k = np.meshgrid(np.arange(n_rings - 1), np.arange(n_around), indexing="ij")
-    j, k = j.ravel(), k.ravel()
-    k1 = (k + 1) % n_around
-    p00, p01 = j * n_around + k, j * n_around + k1
-    p10, p11 = p00 + n_around, p01 + n_around
-    return np.concatenate([np.stack([p00, p10, p11], 1), np.stack([p00, p11, p01], 1)])
-
-
-def _fan(center: int, ring: np.ndarray, reverse: bool) -> np.ndarray:
-    """Triangles closing a ring with a fan around vertex ``center``.
-
-    Parameters
-    ----------
-    center : int
-        Index of the fan's centre vertex.
-    ring : (N,) int
-        Ring vertex indices in order.
-    reverse : bool
-        Reverse the winding of the fan.
-
-    Returns
-    -------
-    (N, 3) int
-    """
-    tris = np.stack([np.full(len(ring), center), np.roll(ring, -1), ring], axis=1)
-    return tris[:, ::-1] if reverse else tris
-
-
-def _barrel() -> tuple[np.ndarray, np.ndarray]:
-    """Barrel along z: length 0.11 m, diameter 0.03 m in the middle, 10 % bulge.
-
-    The radius follows a parabola from ``r_end = r_mid / 1.1`` at z = +-L/2 to
-    ``r_mid = 0.015 m`` at z = 0; flat end caps. Centred at the origin.
-
-    Returns
-    -------
-    vertices : (V, 3) float, m
-    triangles : (T, 3) int
-    """
-    r_mid = BARREL_DIAMETER / 2.0
-    r_end = r_mid / (1.0 + BARREL_BULGE)
-    z = np.linspace(-BARREL_LENGTH / 2.0, BARREL_LENGTH / 2.0, 23)
-    radius = r_end + (r_mid - r_end) * (1.0 - (2.0 * z / BARREL_LENGTH) ** 2)
-    theta = 2.0 * np.pi * np.arange(_SECTIONS) / _SECTIONS
-    rings = np.stack(
-        [
-            radius[:, None] * np.cos(theta)[None, :],
-            radius[:, None] * np.sin(theta)[None, :],
-            np.broadcast_to(z[:, None], (len(z), _SECTIONS)),
-        ],
-        axis=-1,
-    ).reshape(-1, 3)
-    n = len(rings)
-    vertices = np.vstack([rings, [[0.0, 0.0, z[0]], [0.0, 0.0, z[-1]]]])
-    first = np.arange(_SECTIONS)
-    last = first + n - _SECTIONS
-    faces = np.vstack(
-        [
-            _loft_faces(len(z), _SECTIONS),
-            _fan(n, first, reverse=False),
-            _fan(n + 1, last, reverse=True),
-        ]
-    )
-    return vertices, faces
-
-
-def _streamline(u: np.ndarray) -> np.ndarray:
-    """Closed NACA 00xx thickness profile scaled to a maximum of about 1.
-
-    Parameters
-    ----------
-    u : (N,) float in [0, 1]
-        Position along the body (0 nose, 1 tail end).
-
-    Returns
-    -------
-    (N,) float
-        0 at u = 0 and u = 1, maximum about 1 near u = 0.3.
-    """
-    t = 0.2969 * np.sqrt(u) - 0.1260 * u - 0.3516 * u**2 + 0.2843 * u**3 - 0.1036 * u**4
-    return t / 0.1
-
-
-def _fish_profiles(s: np.ndarray, s_tail: float) -> tuple[np.ndarray, np.ndarray]:
-    """Relative half-width (y) and half-height (z) of the fish cross-sections.
-
-    The body (s <= s_tail) is a streamlined profile plus a term that keeps the caudal
-    peduncle 0.10 (width) and 0.22 (height) of the body maximum; the tail fin
-    (s > s_tail) thins to 0.05 and flares to 0.86 in height.
-
-    Parameters
-    ----------
-    s : (M,) float in (0, 1]
-        Position from the nose (0) to the tail lobe tips (1), fraction of the length.
-    s_tail : float
-        Position of the caudal peduncle, where the tail fin starts.
-
-    Returns
-    -------
-    half_width, half_height : (M,) float
-        Relative sizes; the body maximum is about 1.
-    """
-    peduncle_w, peduncle_h, fin_end_w, fin_end_h = 0.10, 0.22, 0.05, 0.86
-    u = np.clip(s / s_tail, 0.0, 1.0)
-    body_w = _streamline(u) + peduncle_w * u**2
-    body_h = _streamline(u) + peduncle_h * u**2
-    v = np.clip((s - s_tail) / (1.0 - s_tail), 0.0, 1.0)
-    fin_w = peduncle_w + (fin_end_w - peduncle_w) * v
-    fin_h = peduncle_h + (fin_end_h - peduncle_h) * np.sin(0.5 * np.pi * v) ** 1.3
-    in_fin = s > s_tail
-    return np.where(in_fin, fin_w, body_w), np.where(in_fin, fin_h, body_h)
-
-
-def _tail_strip(base: int, n_around: int) -> np.ndarray:
-    """Triangles closing the fish's last ring, a thin vertical loop, as a strip.
-
-    Ring point k (angle theta_k = -pi/2 + 2 pi k / N) faces its mirror image across
-    y = 0, point (N - k) mod N; consecutive mirror pairs are joined by two triangles.
-
-    Parameters
-    ----------
-    base : int
-        Index of the ring's first vertex.
-    n_around : int
-        Points on the ring N (even).
-
-    Returns
-    -------
-    (N - 2, 3) int
-    """
-    k = np.arange(n_around // 2)
-    k1 = k + 1
-    mk, mk1 = (n_around - k) % n_around, (n_around - k1) % n_around
-    tris = np.concatenate([np.stack([k, mk1, k1], 1), np.stack([k, mk, mk1], 1)])
-    distinct = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])
-    return base + tris[distinct]
-
-
-def _fish() -> tuple[np.ndarray, np.ndarray]:
-    """A procedural fish: 0.29 m long (x) x 0.06 m wide (y) x 0.07 m high (z).
-
-    A lofted body of elliptical cross-sections, head toward +x, back toward +z: a
-    streamlined (NACA 00xx) profile from the blunt nose to a narrow caudal peduncle at
-    78 % of the length, then a thin tail fin that flares to about 0.06 m high with a
-    forked trailing edge (its top and bottom lobes reach 45 % of the fin length further
-    back than its middle). The nose closes with a fan to the tip, the trailing edge with
-    a thin strip. Vertices are shifted along x so that the centre of mass is at the
-    origin (the shape is symmetric about y = 0 and z = 0).
-
-    Returns
-    -------
-    vertices : (V, 3) float, m
-    triangles : (T, 3) int
-    """
-    s_tail, fork, n_body, n_fin = 0.78, 0.45, 44, 18
-    s_body = s_tail * (1.0 - np.cos(0.5 * np.pi * np.linspace(0.0, 1.0, n_body + 1)[1:]))
-    s = np.concatenate([s_body, np.linspace(s_tail, 1.0, n_fin + 1)[1:]])
-    half_w, half_h = _fish_profiles(s, s_tail)
-    in_body = s <= s_tail
-    half_w = half_w / half_w[in_body].max() * (FISH_WIDTH / 2.0)
-    half_h = half_h / half_h[in_body].max() * (FISH_HEIGHT / 2.0)
-    theta = -0.5 * np.pi + 2.0 * np.pi * np.arange(_SECTIONS) / _SECTIONS
-    fin_length = (1.0 - s_tail) * FISH_LENGTH
-    v = np.clip((s - s_tail) / (1.0 - s_tail), 0.0, 1.0)
-    lobe = (1.0 - fork) + fork * np.abs(np.sin(theta)) ** 1.5
-    x = FISH_LENGTH * (1.0 - np.minimum(s, s_tail))[:, None] - fin_length * v[:, None] * lobe
-    y = half_w[:, None] * np.cos(theta)[None, :]
-    z = half_h[:, None] * np.sin(theta)[None, :]
-    rings = np.stack([x, y, z], axis=-1).reshape(-1, 3)
-    nose = len(rings)
-    vertices = np.vstack([rings, [[FISH_LENGTH, 0.0, 0.0]]])
-    faces = np.vstack(
-        [
-            _fan(nose, np.arange(_SECTIONS), reverse=True),
-            _loft_faces(len(s), _SECTIONS),
-            _tail_strip(nose - _SECTIONS, _SECTIONS),
-        ]
-    )
-    return vertices, faces
-
-
-def _sphere() -> tuple[np.ndarray, np.ndarray]:
-    """Icosphere (subdivisions 3) of diameter 0.05 m centred at the origin."""
-    mesh = trimesh.creation.icosphere(subdivisions=3, radius=SPHERE_DIAMETER / 2.0)
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
-
-
-def _cube() -> tuple[np.ndarray, np.ndarray]:
-    """Cube of edge 0.07 m centred at the origin, faces normal to the object axes."""
-    mesh = trimesh.creation.box(extents=(CUBE_EDGE, CUBE_EDGE, CUBE_EDGE))
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
-
-
-_BUILDERS = {"sphere": _sphere, "cube": _cube, "barrel": _barrel, "fish": _fish}
+_BUILDERS = {
+    "sphere": shapes.sphere,
+    "cube": shapes.cube,
+    "barrel": shapes.barrel,
+    "fish": shapes.fish,
+}
 
 
 @functools.lru_cache(maxsize=None)
@@ -1174,137 +717,33 @@ def builtin(name: str) -> GraspObject:
 
 
 # --------------------------------------------------------------------------------------
-# Poses
+# Re-exports of grasp_apso.mesh_files and grasp_apso.poses
 # --------------------------------------------------------------------------------------
 
-
-def _as_vector(values: Any, size: int, what: str) -> np.ndarray:
-    """A finite float vector of length ``size`` or ObjectError naming ``what``."""
-    try:
-        vec = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ObjectError(f"{what} must be {size} numbers") from None
-    if vec.shape != (size,):
-        raise ObjectError(f"{what} must have shape ({size},), got {vec.shape}")
-    if not np.isfinite(vec).all():
-        raise ObjectError(f"{what} is not finite: {vec.tolist()}")
-    return vec
-
-
-def pose_to_matrix(position: Any, quaternion: Any, field: str = "object_pose") -> np.ndarray:
-    """Homogeneous transform of a pose.
-
-    Parameters
-    ----------
-    position : array_like, (3,) float, m
-    quaternion : array_like, (4,) float
-        Orientation as (x, y, z, w) (ROS order). Its norm must be 1 within
-        :data:`QUATERNION_NORM_TOLERANCE` (1e-3); such a quaternion is normalised, any
-        other is rejected, not silently normalised.
-    field : str
-        Request field named in error messages.
-
-    Returns
-    -------
-    (4, 4) float
-        ``T`` with ``T[:3, :3]`` the rotation and ``T[:3, 3]`` the position.
-
-    Raises
-    ------
-    ObjectError
-        ``object_pose: ...`` for wrong shapes, non-finite values, a zero quaternion or a
-        quaternion that is not unit.
-    """
-    pos = _as_vector(position, 3, f"{field}: position")
-    quat = _as_vector(quaternion, 4, f"{field}: quaternion")
-    norm = float(np.linalg.norm(quat))
-    if norm < 1e-12:
-        raise ObjectError(f"{field}: zero quaternion")
-    if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-        raise ObjectError(f"{field}: quaternion is not unit (norm {norm:.4g})")
-    transform = np.eye(4)
-    transform[:3, :3] = Rotation.from_quat(quat / norm).as_matrix()
-    transform[:3, 3] = pos
-    return transform
+#: Names re-exported from other modules, bound on first access (PEP 562): those modules
+#: import from this one, so importing them while this one loads would be a cycle.
+_REEXPORTS: dict[str, str] = {
+    "from_file": "mesh_files",
+    "DEFAULT_MAX_BYTES": "mesh_files",
+    "PathLike": "mesh_files",
+    "pose_to_matrix": "poses",
+    "matrix_to_pose": "poses",
+    "transform_points": "poses",
+    "transform_vectors": "poses",
+    "QUATERNION_NORM_TOLERANCE": "poses",
+}
 
 
-def _check_transform(transform: Any) -> np.ndarray:
-    """A (4, 4) finite float array, or ValueError naming ``T``."""
-    mat = np.asarray(transform, dtype=np.float64)
-    if mat.shape != (4, 4):
-        raise ValueError(f"T: expected shape (4, 4), got {mat.shape}")
-    if not np.isfinite(mat).all():
-        raise ValueError("T: not finite")
-    return mat
+def __getattr__(name: str) -> Any:
+    """Bind a re-exported name (``from_file``, ``pose_to_matrix`` ...) on first access."""
+    module = _REEXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __package__), name)
+    globals()[name] = value
+    return value
 
 
-def matrix_to_pose(transform: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Position and quaternion of a rigid homogeneous transform.
-
-    Parameters
-    ----------
-    transform : array_like, (4, 4) float
-        Rigid transform: rotation block orthonormal with determinant +1 (within 1e-6),
-        last row (0, 0, 0, 1).
-
-    Returns
-    -------
-    position : (3,) float, m
-    quaternion : (4,) float
-        Unit (x, y, z, w) with w >= 0.
-
-    Raises
-    ------
-    ValueError
-        ``T: ...`` when the matrix is not a finite rigid transform.
-    """
-    mat = _check_transform(transform)
-    if not np.allclose(mat[3], (0.0, 0.0, 0.0, 1.0), atol=1e-9):
-        raise ValueError(f"T: last row must be (0, 0, 0, 1), got {mat[3].tolist()}")
-    rot = mat[:3, :3]
-    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) <= 0.0:
-        raise ValueError("T: rotation block is not a proper rotation")
-    quat = Rotation.from_matrix(rot).as_quat()
-    if quat[3] < 0.0:
-        quat = -quat
-    return mat[:3, 3].copy(), quat
-
-
-def transform_points(transform: Any, points: Any) -> np.ndarray:
-    """Apply a homogeneous transform to points.
-
-    Parameters
-    ----------
-    transform : array_like, (4, 4) float
-    points : array_like, (..., 3) float, m
-
-    Returns
-    -------
-    (..., 3) float, m
-        ``R @ p + t`` for every point.
-    """
-    mat = _check_transform(transform)
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.ndim == 0 or pts.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (..., 3), got {pts.shape}")
-    return pts @ mat[:3, :3].T + mat[:3, 3]
-
-
-def transform_vectors(transform: Any, vectors: Any) -> np.ndarray:
-    """Rotate vectors (directions, normals, forces) by a transform's rotation only.
-
-    Parameters
-    ----------
-    transform : array_like, (4, 4) float
-    vectors : array_like, (..., 3) float
-
-    Returns
-    -------
-    (..., 3) float
-        ``R @ v`` for every vector.
-    """
-    mat = _check_transform(transform)
-    vecs = np.asarray(vectors, dtype=np.float64)
-    if vecs.ndim == 0 or vecs.shape[-1] != 3:
-        raise ValueError(f"vectors: expected shape (..., 3), got {vecs.shape}")
-    return vecs @ mat[:3, :3].T
+def __dir__() -> list[str]:
+    """Module attributes, re-exports included."""
+    return sorted(set(globals()) | set(_REEXPORTS))

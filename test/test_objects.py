@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso import objects
+from grasp_apso import mesh_files, objects
 from grasp_apso.objects import (
     BUILTIN_OBJECTS,
     GraspObject,
@@ -185,6 +185,31 @@ def test_inverted_and_mixed_winding_are_fixed() -> None:
         assert obj.watertight
         assert obj.mesh.is_winding_consistent
         assert obj.mesh.volume == pytest.approx(volume)
+
+
+def test_each_closed_piece_is_turned_outward() -> None:
+    left = trimesh.creation.box(extents=(0.02, 0.02, 0.02))
+    right = left.copy()
+    right.apply_translation((0.05, 0.0, 0.0))
+    right_faces = np.array(right.faces)[:, ::-1] + len(left.vertices)  # inverted body
+    right_faces[::2] = right_faces[::2, ::-1]  # ... with mixed winding
+    obj = from_arrays(np.vstack([left.vertices, right.vertices]),
+                      np.vstack([left.faces, right_faces]))
+    assert obj.watertight
+    assert obj.mesh.is_winding_consistent
+    for body in obj.mesh.split(only_watertight=False):
+        assert body.volume == pytest.approx(0.02**3)
+
+
+def test_non_orientable_closed_surface_is_not_a_solid() -> None:
+    # The 6-vertex real projective plane: every edge in two triangles, not orientable.
+    faces = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 1],
+                      [1, 2, 4], [2, 3, 5], [3, 4, 1], [4, 5, 2], [5, 1, 3]])
+    vertices = np.random.default_rng(1).uniform(-0.03, 0.03, (6, 3))
+    obj = from_arrays(vertices, faces)
+    assert not obj.watertight
+    np.testing.assert_array_equal(obj.mesh.faces, faces)  # left as given, not half re-wound
+    np.testing.assert_allclose(obj.center_of_mass, obj.mesh.convex_hull.center_mass)
 
 
 def test_duplicate_and_degenerate_faces_are_removed() -> None:
@@ -492,7 +517,7 @@ def test_directory_and_unreadable_file_refused(tmp_path, monkeypatch) -> None:
         raise PermissionError(13, "Permission denied")
 
     # Root reads files without read permission, so simulate the failing open().
-    monkeypatch.setattr(objects, "open", refuse, raising=False)
+    monkeypatch.setattr(mesh_files, "open", refuse, raising=False)
     with pytest.raises(ObjectError, match="mesh_uri: cannot read file \\(Permission denied\\)"):
         from_file(path)
 
