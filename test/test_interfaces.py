@@ -237,6 +237,18 @@ def test_action_messages_roundtrip():
     assert deserialize_message(serialize_message(result), PlanGraspAction.Result) == result
 
 
+def test_numpy_fixed_array_fields_roundtrip():
+    """The wheels' message extensions work with the pinned numpy (fixed-size arrays are numpy)."""
+    import numpy as np
+    from sensor_msgs.msg import Imu
+
+    msg = Imu()
+    msg.orientation_covariance = np.arange(9, dtype=np.float64)
+    back = deserialize_message(serialize_message(msg), Imu)
+    assert isinstance(back.orientation_covariance, np.ndarray)
+    np.testing.assert_array_equal(back.orientation_covariance, np.arange(9.0))
+
+
 # --- through the middleware --------------------------------------------------------------
 
 @pytest.fixture
