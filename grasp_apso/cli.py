@@ -252,6 +252,23 @@ def _fcl_text(result: GraspResult) -> str:
     return "NOT legal: " + "; ".join(parts)
 
 
+def touching_links(result: GraspResult, tolerance: float = 1e-4) -> list[str]:
+    """Links other than the contact fingertips that touch the object (python-fcl distance 0).
+
+    The quality measures count fingertip contacts only; a link resting on the object makes
+    the real grasp partly an enveloping one.
+    """
+    distance = np.asarray(result.fcl.link_distance, float)
+    tips = {c.finger for c in result.contacts}
+    out = []
+    for f, k in np.argwhere(distance <= tolerance):
+        finger = FINGER_NAMES[f]
+        if k == 2 and finger in tips:
+            continue
+        out.append(f"{finger}_{_LINK_NAMES[finger][k]}")
+    return out
+
+
 def _verdict(result: GraspResult) -> str:
     if result.valid:
         text = "valid grasp, " + ("force closure" if result.force_closure else "NOT force closure")
@@ -321,6 +338,9 @@ def format_report(result: GraspResult, hand, friction: float,
         ("max penetration", f"{result.max_penetration * 1000:.2f} mm",
          "deepest link into the object"),
         ("python-fcl check", _fcl_text(result), ""),
+        ("other links touching",
+         (", ".join(t.replace("_", " ") for t in touching_links(result)) + " (not counted as contacts)")
+         if touching_links(result) else "none", ""),
         ("iterations", f"{result.iterations_run} of {result.history[-1].iterations if result.history else '?'}",
          "(cancelled)" if result.cancelled else ""),
         ("evaluations", f"{result.evaluations}", "particle decodes (GRG draws included)"),
@@ -329,7 +349,7 @@ def format_report(result: GraspResult, hand, friction: float,
          "distance grid and shape class (cached per mesh)"),
     ]
     for name, value, note in rows:
-        lines.append(f"  {name:<19}{value:<10}{('  ' + note) if note else ''}".rstrip())
+        lines.append(f"  {name:<21}{value:<10}{('  ' + note) if note else ''}".rstrip())
     return "\n".join(lines)
 
 
@@ -424,6 +444,8 @@ def result_to_dict(result: GraspResult, friction: float | None = None) -> dict[s
                 for f, k in np.argwhere(np.asarray(fcl.link_penetrates))
             ],
             "colliding_finger_pairs": [list(p) for p in fcl.finger_pairs_colliding],
+            "link_distance": np.asarray(fcl.link_distance, float).tolist(),
+            "touching_links": touching_links(result),
         },
         "shape_class": result.shape_class,
         "iterations_run": int(result.iterations_run),

@@ -224,15 +224,21 @@ def _zoom_to_content(fig: Figure, panels: list) -> None:
 
     FigureCanvasAgg(fig)
     fig.canvas.draw()
-    for ax, pts in panels:
+    for ax, pts, right_s, tubes in panels:
         bbox = ax.get_window_extent()
-        x2, y2, _ = proj3d.proj_transform(*pts.T, ax.get_proj())
+        probe = np.vstack([pts, pts[:1] + right_s * 10.0])  # last two points: 10 mm apart
+        x2, y2, _ = proj3d.proj_transform(*probe.T, ax.get_proj())
         disp = ax.transData.transform(np.column_stack([x2, y2]))
+        px_per_mm = float(np.linalg.norm(disp[-1] - disp[0])) / 10.0
+        disp = disp[:-1]
         cx, cy = (bbox.x0 + bbox.x1) / 2, (bbox.y0 + bbox.y1) / 2
         need_x = float(np.abs(disp[:, 0] - cx).max()) / (bbox.width / 2)
         need_y = float(np.abs(disp[:, 1] - cy).max()) / (bbox.height / 2)
-        zoom = 0.9 / max(need_x, need_y, 1e-6)
-        ax.set_box_aspect((1, 1, 1), zoom=float(np.clip(zoom, 0.5, 4.0)))
+        zoom = float(np.clip(0.9 / max(need_x, need_y, 1e-6), 0.5, 4.0))
+        ax.set_box_aspect((1, 1, 1), zoom=zoom)
+        # Finger volumes to scale: line width (points) of the link diameter after zooming.
+        for line, diameter_mm in tubes:
+            line.set_linewidth(diameter_mm * px_per_mm * zoom * 72.0 / fig.dpi)
 
 
 def _shaded_colors(tris: np.ndarray, base: np.ndarray, light: np.ndarray, alpha: float) -> np.ndarray:
@@ -270,6 +276,20 @@ def _transform(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 def _yes(flag: bool) -> str:
     return "yes" if flag else "no"
+
+
+def _touching_links(result: Any, tolerance: float = 1e-4) -> np.ndarray:
+    """(5, 3) bool: links resting on the object (python-fcl distance 0), except the distal
+    link of a finger whose fingertip is a contact."""
+    fcl = getattr(result, "fcl", None)
+    distance = getattr(fcl, "link_distance", None)
+    if distance is None:
+        return np.zeros((5, 3), bool)
+    touching = np.asarray(distance, float) <= tolerance
+    for c in result.contacts:
+        if c.finger in FINGER_NAMES:
+            touching[FINGER_NAMES.index(c.finger), 2] = False
+    return touching
 
 
 def grasp_title(result: Any, object_name: str | None = None) -> str:
@@ -341,6 +361,7 @@ def plot_grasp(
     palm = _transform(wrist, _box_corners(np.asarray(hand.palm_center), np.asarray(hand.palm_half_extents))) * _MM
     axes_palm = wrist[:3, :3]  # columns: fingers (x), thumb side (y), palm normal (z)
     pad_mm = hand.pad_radius * _MM
+    radii_mm = np.asarray(hand.link_radii, float) * _MM
 
     # Scene bounds: object, palm, fingers; equal ranges on every axis.
     pts = np.vstack([verts, palm, joints.reshape(-1, 3)])
@@ -364,6 +385,7 @@ def plot_grasp(
     fig.suptitle(title if title is not None else grasp_title(result, getattr(obj, "name", None)), fontsize=12)
     light = axes_palm @ np.array([0.3, 0.5, 1.0])
     contact_by_finger = {c.finger: c for c in result.contacts}
+    touching = _touching_links(result)
     panels = []
 
     for k, view in enumerate(views):
@@ -372,6 +394,7 @@ def plot_grasp(
         elev, azim, roll = view_angles(direction, up)
         ax.view_init(elev=elev, azim=azim, roll=roll)
         ax.set_proj_type("ortho")
+        tubes = []
 
         # Object: translucent shaded mesh.
         mesh = Poly3DCollection(
@@ -392,7 +415,14 @@ def plot_grasp(
         for f, name in enumerate(FINGER_NAMES):
             color = FINGER_COLORS[name]
             chain = joints[f]
-            ax.plot(*chain.T, color=color, linewidth=5.0, solid_capstyle="round", zorder=3)
+            # Link volumes to scale: proximal + middle as one polyline, then the distal link.
+            for piece, radius in ((chain[:3], max(radii_mm[0], radii_mm[1])), (chain[2:], radii_mm[2])):
+                tube, = ax.plot(*piece.T, color=color, alpha=0.16, linewidth=1.0,
+                                solid_capstyle="round", solid_joinstyle="round", zorder=2)
+                tubes.append((tube, 2.0 * radius))
+            ax.plot(*chain.T, color=color, linewidth=4.0, solid_capstyle="round", zorder=3)
+            for k in np.flatnonzero(touching[f]):
+                ax.plot(*chain[k:k + 2].T, color="black", linewidth=1.3, linestyle=(0, (2, 1.5)), zorder=4)
             ax.scatter(*chain[:3].T, s=14, color="white", edgecolors=color, zorder=4, depthshade=False)
             sx, sy, sz = _sphere(chain[3], pad_mm)
             ax.plot_surface(sx, sy, sz, color=color, alpha=0.55, linewidth=0, shade=True, zorder=3)
@@ -415,7 +445,7 @@ def plot_grasp(
         ax.set_zlim(c3[2] - half, c3[2] + half)
         ax.set_box_aspect((1, 1, 1))
         ax.set_axis_off()
-        panels.append((ax, view_pts))
+        panels.append((ax, view_pts, right_s, tubes))
         ax.set_title(label, fontsize=10)
 
     handles = [Line2D([], [], color=FINGER_COLORS[n], linewidth=5, label=n) for n in FINGER_NAMES]
@@ -426,7 +456,13 @@ def plot_grasp(
         Patch(facecolor=_OBJECT_COLOR, alpha=0.5, label="object"),
         Patch(facecolor=_PALM_COLOR, edgecolor="#8A6A4A", alpha=0.6, label="palm (face toward object)"),
     ]
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=9, frameon=False)
+    handles.append(Line2D([], [], color="0.5", alpha=0.3, linewidth=9, solid_capstyle="round",
+                          label="finger volume (to scale)"))
+    if touching.any():
+        handles.append(Line2D([], [], color="black", linewidth=1.3, linestyle=(0, (2, 1.5)),
+                              label="link touching the object (not a contact)"))
+    fig.legend(handles=handles, loc="lower center", ncol=6, fontsize=9, frameon=False, columnspacing=1.2,
+               handlelength=2.2)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.08, top=0.88, wspace=0.0)
     _zoom_to_content(fig, panels)
     return _save(fig, path, dpi)

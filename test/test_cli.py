@@ -81,7 +81,7 @@ def test_apso_run_prints_the_table_and_writes_pictures_and_json(tmp_path, capsys
     assert "position" in out and "quaternion" in out and " mm" in out
     assert "Contacts:" in out
     for label in ("fitness", "maximised", "epsilon", "Ferrari-Canny", "force closure", "fingertip contacts",
-                  "max penetration", "python-fcl check", "iterations         6 of 6", "evaluations",
+                  "max penetration", "python-fcl check", "other links touching", "iterations           6 of 6", "evaluations",
                   "planning time", "preparation time"):
         assert label in out, label
     # Progress: not a terminal here, so plain lines on stderr.
@@ -108,6 +108,8 @@ def test_apso_run_prints_the_table_and_writes_pictures_and_json(tmp_path, capsys
     assert 0.0 <= result["fitness"] <= 1.0 or not result["valid"]
     for key in ("epsilon", "force_closure", "valid", "fcl", "planning_time", "evaluations"):
         assert key in result
+    assert np.array(result["fcl"]["link_distance"]).shape == (5, 3)
+    assert all(link.split("_")[0] in FINGER_NAMES for link in result["fcl"]["touching_links"])
 
 
 def test_both_algorithms_are_compared(tmp_path, capsys):
