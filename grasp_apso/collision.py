@@ -46,6 +46,13 @@ def segment_distances(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.nda
     s = np.where(t < 0.0, np.clip(-c / np.maximum(a, eps), 0.0, 1.0), s)
     s = np.where(t > 1.0, np.clip((b - c) / np.maximum(a, eps), 0.0, 1.0), s)
     t = np.clip(t, 0.0, 1.0)
+    # Degenerate segments (points): Ericson's a <= eps / e <= eps cases.
+    q_point = e <= eps
+    s = np.where(q_point, np.clip(-c / np.maximum(a, eps), 0.0, 1.0), s)
+    t = np.where(q_point, 0.0, t)
+    p_point = a <= eps
+    s = np.where(p_point, 0.0, s)
+    t = np.where(p_point, np.where(q_point, 0.0, np.clip(f / np.maximum(e, eps), 0.0, 1.0)), t)
     closest = (p0 + s[..., None] * d1) - (q0 + t[..., None] * d2)
     return np.linalg.norm(closest, axis=-1)
 
@@ -65,7 +72,8 @@ def finger_collisions(joints: np.ndarray, radii: np.ndarray, allowed_overlap: fl
     Returns
     -------
     (P, 5) bool
-        True for each finger in at least one colliding pair.
+        True for each finger in at least one colliding pair, or folded into itself (its
+        distal link against its proximal link).
     """
     a_idx = np.array([p[0] for p in FINGER_PAIRS])
     b_idx = np.array([p[1] for p in FINGER_PAIRS])
@@ -76,7 +84,9 @@ def finger_collisions(joints: np.ndarray, radii: np.ndarray, allowed_overlap: fl
     )
     limit = radii[:, None] + radii[None, :] - allowed_overlap
     hit = (dist < limit).any(axis=(2, 3))  # (P, 10)
-    out = np.zeros(joints.shape[:2], dtype=bool)
+    # Within a finger: the distal link against the proximal one (a finger folded into itself).
+    folded = segment_distances(joints[:, :, 0], joints[:, :, 1], joints[:, :, 2], joints[:, :, 3])
+    out = folded < radii[0] + radii[2] - allowed_overlap
     for k, (i, j) in enumerate(FINGER_PAIRS):
         out[:, i] |= hit[:, k]
         out[:, j] |= hit[:, k]
@@ -134,6 +144,16 @@ def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> fcl.CollisionObje
 
 def _collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
     return fcl.collide(a, b, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+
+
+def palm_penetration(points: np.ndarray, center: np.ndarray, half_extents: np.ndarray) -> np.ndarray:
+    """Depth of points inside the palm box (palm frame), 0 outside.
+
+    points : (..., 3) float, m -> (...,) float, m
+    """
+    q = np.abs(points - center) - half_extents
+    inside = np.minimum(q.max(axis=-1), 0.0)  # negative inside: minus the depth
+    return np.where(np.all(q < 0.0, axis=-1), -inside, 0.0)
 
 
 def verify_with_fcl(

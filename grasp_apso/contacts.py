@@ -15,9 +15,12 @@ the upper limits of both flexions, ``theta(s) = pre + s * (upper - pre)``, ``s``
 surface is found by a coarse sweep and a bisection. The finger stops there: if its
 fingertip pad is then within ``tolerance`` of the surface it is a fingertip contact;
 if another link touched first, the finger is stopped with no fingertip contact. A
-finger that meets nothing closes to its limits. A finger already penetrating the object
-at its pre-shape (deeper than ``tolerance``) is *blocked*: illegal, the case the GRG
-verification test regenerates.
+finger that meets nothing closes to its limits. Illegal fingers, the cases the GRG
+verification test regenerates: *blocked* (already penetrating the object at its
+pre-shape), a link deeper than ``max_penetration`` into the object, a proximal or middle
+link touching the object (the paper plans precision grasps: only fingertips touch),
+capsules overlapping another finger, the finger folded into itself, or a finger through
+the palm.
 
 Wrist position (computed apart, as the paper says): the palm's ``grasp_center`` is
 aimed at the object's centre of mass along the palm normal, at a standoff that puts the
@@ -31,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collision import finger_collisions
+from .collision import finger_collisions, palm_penetration
 from .hand import N_FINGERS, HandModel, wrist_rotation
 from .sdf import SignedDistanceGrid, cached_sdf_grid
 
@@ -55,6 +58,8 @@ _FINAL_POINTS = np.array(
     + [[1, f] for f in np.linspace(1 / 8, 1.0, 8)] + [[2, f] for f in np.linspace(1 / 7, 1.0, 7)]
 )
 _JOINT_INDEX = [0, 12, 20, 27]  # base, PIP, DIP, tip in _FINAL_POINTS
+_NON_TIP_LINKS = slice(1, 18)     # proximal link and first 5/8 of the middle link (not the knuckle)
+_CLEAR_OF_PALM = slice(7, 28)     # from the middle of the proximal link to the pad
 
 
 def _link_coefficients(points: np.ndarray) -> np.ndarray:
@@ -93,6 +98,13 @@ class ContactSettings:
         Bisection steps after the sweep (resolution ``1 / ((coarse_steps-1) 2^refine)``).
     finger_overlap : float, m
         Overlap allowed between capsules of different fingers (soft skin).
+    link_contact_tolerance : float, m
+        A proximal or middle link this close to the surface touches the object.
+    allow_link_contacts : bool
+        False (default, the paper's precision grasps: only fingertips touch): a finger
+        whose proximal or middle link touches the object is illegal.
+    palm_overlap : float, m
+        Depth a finger may sink into the palm box (soft skin) before it collides.
     """
 
     tolerance: float = 0.002
@@ -102,6 +114,9 @@ class ContactSettings:
     coarse_steps: int = 16
     refine_steps: int = 5
     finger_overlap: float = 0.002
+    link_contact_tolerance: float = 0.001
+    allow_link_contacts: bool = False
+    palm_overlap: float = 0.003
 
     def __post_init__(self) -> None:
         checks = {
@@ -112,6 +127,8 @@ class ContactSettings:
             "coarse_steps": 2 <= self.coarse_steps <= 200,
             "refine_steps": 0 <= self.refine_steps <= 30,
             "finger_overlap": 0 <= self.finger_overlap <= 0.01,
+            "link_contact_tolerance": 0 <= self.link_contact_tolerance <= 0.01,
+            "palm_overlap": 0 <= self.palm_overlap <= 0.02,
         }
         for name, ok in checks.items():
             if not ok:
@@ -179,7 +196,8 @@ class DecodedGrasps:
     joints : (P, 5, 4, 3) float, m
         Base, PIP, DIP and tip points of each finger, closed.
     tip_gap : (P, 5) float, m
-        Clearance of each fingertip pad from the surface (negative: inside).
+        Clearance of each fingertip pad from the surface where its closing motion stopped
+        (negative: inside); guides particles without contacts toward contact.
     contact : (P, 5) bool
         Fingertip contacts.
     contact_points, contact_normals : (P, 5, 3) float
@@ -189,7 +207,10 @@ class DecodedGrasps:
     blocked : (P, 5) bool
         Finger penetrating the object already at its pre-shape.
     finger_collision : (P, 5) bool
-        Finger colliding with another finger.
+        Finger colliding with another finger, with the palm, or folded into itself.
+    link_contact : (P, 5) bool
+        Finger touching the object with its proximal or middle link (not a precision
+        contact; illegal unless the settings allow link contacts).
     palm_penetration : (P,) float, m
         Deepest penetration of the palm face into the object (fixed wrist only).
     """
@@ -205,6 +226,7 @@ class DecodedGrasps:
     blocked: np.ndarray
     finger_collision: np.ndarray
     palm_penetration: np.ndarray
+    link_contact: np.ndarray
 
     @property
     def n_contacts(self) -> np.ndarray:
@@ -213,7 +235,7 @@ class DecodedGrasps:
 
     def finger_illegal(self, max_penetration: float) -> np.ndarray:
         """(P, 5) bool: fingers the verification test rejects."""
-        return self.blocked | self.finger_collision | (self.penetration > max_penetration)
+        return self.blocked | self.finger_collision | self.link_contact | (self.penetration > max_penetration)
 
     def legal(self, max_penetration: float) -> np.ndarray:
         """(P,) bool: no illegal finger and no palm penetration."""
@@ -304,6 +326,9 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
     x = np.asarray(x, dtype=float)
     if x.ndim != 2 or x.shape[1] != N_DIMS:
         raise ValueError(f"x: expected (P, {N_DIMS}), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        row, col = np.argwhere(~np.isfinite(x))[0]
+        raise ValueError(f"x: particle {row} value {col} is not finite")
     x = np.clip(x, model.lower, model.upper)
     hand, sdf, settings = model.hand, model.sdf, model.settings
     n = len(x)
@@ -350,20 +375,40 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
         hi = np.where(refine & ~free, mid, hi)
     s = lo
 
-    distal = distal0 + s * d_span
-    proximal = proximal0 + s * p_span
-    pts = np.stack(basis.points(distal, proximal, _FINAL_COEFF), axis=-1)  # (P, 5, 28, 3)
+    def final_points(s_final: np.ndarray) -> np.ndarray:
+        d = distal0 + s_final * d_span
+        p = proximal0 + s_final * p_span
+        return np.stack(basis.points(d, p, _FINAL_COEFF), axis=-1)  # (P, 5, 28, 3)
+
+    pts = final_points(s)
     clearance = sdf.distance(pts) - model.point_radii
     tip_gap = clearance[..., -1]
-    penetration = np.maximum(0.0, -clearance.min(axis=-1))
     # The sphere that stopped the finger is within the bisection resolution of the
     # surface; a pad within the tolerance is a fingertip contact.
-    contact = (tip_gap <= tol) & ~blocked & (penetration <= settings.max_penetration)
+    contact = (tip_gap <= tol) & ~blocked & (clearance.min(axis=-1) >= -settings.max_penetration)
+    # Fingers without a fingertip contact take no part in the precision grasp: they stay
+    # at their pre-shape (closed to their limits they would fold into the palm or
+    # themselves; stopped by a middle link they would not be a precision contact).
+    s = np.where(contact, s, 0.0)
+    if not contact.all():
+        pts = final_points(s)
+        clearance = sdf.distance(pts) - model.point_radii
+    distal = distal0 + s * d_span
+    proximal = proximal0 + s * p_span
+    penetration = np.maximum(0.0, -clearance.min(axis=-1))
     tips = pts[..., -1, :]
     surface, normals = sdf.closest_surface_point(tips)
 
+    link_contact = (clearance[..., _NON_TIP_LINKS].min(axis=-1) <= settings.link_contact_tolerance) & ~blocked
+    if settings.allow_link_contacts:
+        link_contact = np.zeros_like(link_contact)
+
     joints = pts[..., _JOINT_INDEX, :]
     collide = finger_collisions(joints, np.array([*hand.link_radii[:2], hand.pad_radius]), settings.finger_overlap)
+    # Fingers through the palm (a free finger closed to its limits can fold back into it).
+    in_palm = np.einsum("pji,pfkj->pfki", rot, pts[..., _CLEAR_OF_PALM, :] - trans[:, None, None, :])
+    depth = palm_penetration(in_palm, hand.palm_center, hand.palm_half_extents)
+    collide |= depth.max(axis=-1) > settings.palm_overlap
 
     closed = x.copy()
     closed[:, 0:15:3] = distal
@@ -376,6 +421,7 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
         closed=closed, wrist=wrist, joints=joints, tip_gap=tip_gap, contact=contact,
         contact_points=surface, contact_normals=normals, penetration=penetration,
         blocked=blocked, finger_collision=collide, palm_penetration=palm_pen,
+        link_contact=link_contact,
     )
 
 

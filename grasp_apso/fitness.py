@@ -19,7 +19,9 @@ in [0, 1] (weights 0.20, 0.15, 0.35, 0.20, 0.10), with
   the origin to the convex hull of the contacts' unit normal wrenches
   (:func:`grasp_apso.quality.normal_wrench_residual`): 0 when a squeeze along the
   contact normals balances force and torque, which with friction and three or more
-  non-collinear contacts is force closure;
+  non-collinear contacts is force closure. Collinear contacts balance without being
+  force closure, so for nc >= 3 the term is scaled by ``min(1, (1 - Q) / 0.5)`` (full
+  for polygons better than Q = 0.5) and for nc = 2 by 0.5;
 - ``count``: ``(nc - 1) / 4``, more fingertip contacts are better (2 -> 0.25, 5 -> 1);
 - ``factor``: the GRG shape parameter factor's term (see :mod:`grasp_apso.grg`): how well
   the wrist matches the approach of the object's shape class, in [0, 1].
@@ -94,7 +96,9 @@ def evaluate(
         shape[pair] = 0.5 * antipodal_score(pts[pair], nrm[pair], mask[pair])
     balance = 1.0 - force_balance_residual(pts, mask, com)
     residual = normal_wrench_residual(pts, nrm, mask, com, float(model.obj.characteristic_radius))
-    equilibrium = 1.0 - np.minimum(residual, 1.0)
+    # Collinear contacts balance without holding: scale by the polygon's regularity.
+    regular = np.where(nc >= 3, np.clip(np.nan_to_num(shape) / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
+    equilibrium = (1.0 - np.minimum(residual, 1.0)) * regular
     count = (nc - 1) / 4.0
     score = (
         W_SHAPE * shape + W_BALANCE * balance + W_EQUILIBRIUM * equilibrium

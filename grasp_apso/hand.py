@@ -304,6 +304,16 @@ def _vector(value: Any, n: int, field: str) -> np.ndarray:
     return arr
 
 
+def _scalar(value: Any, field: str, low: float, high: float) -> float:
+    """A finite number in (low, high], else ValueError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"hand description: {field} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or not low < value <= high:
+        raise ValueError(f"hand description: {field} = {value!r} must be in ({low}, {high}]")
+    return value
+
+
 def hand_from_dict(data: dict) -> HandModel:
     """Build a :class:`HandModel` from a parsed description (see ``data/hand.yaml``)."""
     if not isinstance(data, dict):
@@ -323,7 +333,7 @@ def hand_from_dict(data: dict) -> HandModel:
         base[:3, :3] = rpy_matrix(*rpy)
         base[:3, 3] = _vector(_require(finger, "base_position", where), 3, f"{where} base_position")
         bases.append(base)
-        twists.append(math.radians(float(_require(finger, "pivot_twist_deg", where))))
+        twists.append(math.radians(_scalar(_require(finger, "pivot_twist_deg", where), f"{where} pivot_twist_deg", -360.0, 360.0)))
         limits = _require(finger, "limits_deg", where)
         for kind in JOINT_KINDS:
             lo, hi = _vector(_require(limits, kind, f"{where} limits_deg"), 2, f"{where} limits_deg.{kind}")
@@ -340,12 +350,13 @@ def hand_from_dict(data: dict) -> HandModel:
         upper.append(math.radians(hi))
     palm = _require(data, "palm", "the top level")
     radii = _vector(_require(data, "link_radii", "the top level"), 3, "link_radii")
-    pad = float(_require(data, "pad_radius", "the top level"))
-    ratio = float(_require(data, "coupling_ratio", "the top level"))
-    if np.any(radii <= 0) or pad <= 0:
-        raise ValueError("hand description: link_radii and pad_radius must be positive")
-    if not 0 < ratio < 10:
-        raise ValueError("hand description: coupling_ratio must be in (0, 10)")
+    pad = _scalar(_require(data, "pad_radius", "the top level"), "pad_radius", 0.0, 0.1)
+    ratio = _scalar(_require(data, "coupling_ratio", "the top level"), "coupling_ratio", 0.0, 10.0)
+    if np.any(radii <= 0):
+        raise ValueError("hand description: link_radii must be positive")
+    half = _vector(_require(palm, "half_extents", "palm"), 3, "palm.half_extents")
+    if np.any(half <= 0):
+        raise ValueError("hand description: palm.half_extents must be positive")
     return HandModel(
         name=str(data.get("name", "hand")),
         link_lengths=_readonly(lengths),
@@ -357,7 +368,7 @@ def hand_from_dict(data: dict) -> HandModel:
         link_radii=_readonly(radii),
         pad_radius=pad,
         palm_center=_readonly(_vector(_require(palm, "center", "palm"), 3, "palm.center")),
-        palm_half_extents=_readonly(_vector(_require(palm, "half_extents", "palm"), 3, "palm.half_extents")),
+        palm_half_extents=_readonly(half),
         grasp_center=_readonly(_vector(_require(data, "grasp_center", "the top level"), 3, "grasp_center")),
     )
 

@@ -227,7 +227,7 @@ def build_sdf_grid(
     lateral = np.sqrt(np.maximum(dist**2 - along**2, 0.0))
     # Tangent-plane distance where the node lies over its nearest sample (flat or smooth
     # parts); the distance to the sample itself beyond edges and corners.
-    exact = np.where(lateral <= sample_gap, np.abs(along), dist)
+    exact = np.where(lateral <= 2.0 * sample_gap, np.abs(along), dist)
     sign_plane = np.where(along < 0.0, -1.0, 1.0)
     # Beside a face's edge the nearest sample's plane says nothing (along ~ 0): take the
     # side of the neighbouring sample the node lies most squarely over.

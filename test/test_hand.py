@@ -446,12 +446,6 @@ def _set_finger(key, value):
     return lambda d: d["fingers"][0].__setitem__(key, value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="hand.hand_from_dict converts pad_radius, coupling_ratio and pivot_twist_deg with a bare "
-    "float(): NaN/inf pass the checks (pad <= 0 is False for NaN), a string gives a ValueError that "
-    "does not name the field, a list a TypeError; palm.half_extents may be negative",
-)
 @pytest.mark.parametrize(
     "mutate,message",
     [

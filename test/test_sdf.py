@@ -156,12 +156,6 @@ def test_gradient_is_unit_and_mostly_radial_on_the_sphere(grids) -> None:
     assert angles_deg(grid.gradient(far), radial).max() < 5.0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="sdf.build_sdf_grid: nodes within ~0.5 mm of the surface fall back to the distance to "
-    "the nearest random sample (exact = dist when lateral > sample_gap), a 0.2-0.6 mm error on a "
-    "smooth sphere that tilts the gradient by up to ~13 deg; see the report / fix: 2 * sample_gap",
-)
 def test_gradient_within_5_degrees_of_the_normal_near_the_sphere(grids) -> None:
     pts, radial = sphere_shell(15, -0.005, 0.005)
     ang = angles_deg(grids["sphere"].gradient(pts), radial)
@@ -190,11 +184,6 @@ def test_closest_surface_point_on_the_sphere_regression_guard(grids) -> None:
     np.testing.assert_allclose(normal, grids["sphere"].gradient(pts), atol=0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="same grid defect as the gradient: node values next to the surface are off by up to "
-    "0.6 mm, so the one-step projection misses the sphere by up to ~0.4 mm",
-)
 def test_closest_surface_point_within_0_3_mm_of_the_sphere(grids) -> None:
     pts = sphere_projection_queries(grids["sphere"])
     surface, _ = grids["sphere"].closest_surface_point(pts)
