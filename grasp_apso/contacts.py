@@ -151,6 +151,7 @@ class GraspModel:
     upper: np.ndarray = field(repr=False)
     point_radii: np.ndarray = field(repr=False)
     sweep_radii: np.ndarray = field(repr=False)
+    support_points: np.ndarray = field(repr=False)
 
     @property
     def dims(self) -> int:
@@ -179,8 +180,24 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
-        point_radii=final_radii, sweep_radii=sweep_radii,
+        point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
     )
+
+
+def _support_points(obj, n_directions: int = 2000) -> np.ndarray:
+    """Hull vertices (relative to the centre of mass) that are extreme along a fixed set
+    of directions: the support function of a dense hull at a fraction of the cost
+    (under-estimated by about R * 0.003 between the directions, far below the clearance)."""
+    hull = np.asarray(obj.hull_vertices, dtype=float) - np.asarray(obj.center_of_mass, dtype=float)
+    if len(hull) > 200:
+        k = np.arange(n_directions) + 0.5
+        polar = np.arccos(1.0 - 2.0 * k / n_directions)
+        azimuth = np.pi * (1.0 + 5.0**0.5) * k
+        dirs = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], 1)
+        hull = hull[np.unique(np.argmax(hull @ dirs.T, axis=0))]
+    hull = np.ascontiguousarray(hull)
+    hull.flags.writeable = False
+    return hull
 
 
 @dataclass(frozen=True)
@@ -266,8 +283,7 @@ def wrist_transforms(
         return tf
     normal = rot[:, :, 2]
     com = np.asarray(model.obj.center_of_mass)
-    hull = np.asarray(model.obj.hull_vertices) - com
-    support = (hull @ (-normal.T)).max(axis=0)  # extent of the object toward the palm
+    support = (model.support_points @ (-normal.T)).max(axis=0)  # extent toward the palm
     hand = model.hand
     palm_face = hand.palm_center[2] + hand.palm_half_extents[2]
     height = palm_face + model.settings.clearance + x[:, STANDOFF_INDEX] + support
