@@ -9,11 +9,11 @@ Building the grid (:func:`build_sdf_grid`):
 
 1. voxelise the surface, flood-fill it for inside/outside, and take a Euclidean
    distance transform for the coarse distance away from the surface;
-2. in a narrow band around the surface (12 mm outside, 4 mm inside by default), sample the surface densely
-   (area-weighted, seeded) and take for every node the nearest sample
-   (``scipy.spatial.cKDTree``): the distance to its tangent plane where the node lies
-   over it (exact on flat parts, second order on curved ones), else the distance to the
-   sample (beyond edges and corners); the sign from the tangent-plane side.
+2. in a narrow band around the surface (12 mm outside, 4 mm inside by default), find
+   for every node the nearest of area-weighted surface samples (seeded,
+   ``scipy.spatial.cKDTree``) and take the exact distance to the triangle that sample
+   lies on; the sign from the side of that triangle's plane (for nodes level with the
+   plane, from the neighbouring sample the node lies most squarely over).
 
 Outside the grid box, the distance is the value at the nearest box point plus the
 distance to the box, an over-estimate that only matters far from the object, where
@@ -147,13 +147,42 @@ class SignedDistanceGrid:
 
 
 def _surface_samples(mesh: trimesh.Trimesh, spacing: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted surface samples and the normals of the faces they lie on.
-
-    Vertices are not used: at a sharp edge their averaged normal defines no tangent plane.
-    """
+    """Area-weighted surface samples and the index of the face each lies on."""
     count = int(np.clip(4.0 * mesh.area / (0.5 * spacing) ** 2, 20_000, 400_000))
     points, face_index = trimesh.sample.sample_surface(mesh, count, seed=seed)
-    return np.asarray(points), np.asarray(mesh.face_normals[face_index])
+    return np.asarray(points), np.asarray(face_index)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ab = b - a
+    t = np.clip(_dot(p - a, ab) / np.maximum(_dot(ab, ab), 1e-30), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Exact distance from points to triangles, row by row.
+
+    p, a, b, c : (N, 3) float, m -> (N,) float, m
+    """
+    n = np.cross(b - a, c - a)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    height = _dot(p - a, n)
+    q = p - height[:, None] * n  # projection on the triangle's plane
+    # Inside when q is on the inner side of all three edges.
+    inside = (
+        (_dot(np.cross(b - a, q - a), n) >= 0)
+        & (_dot(np.cross(c - b, q - b), n) >= 0)
+        & (_dot(np.cross(a - c, q - c), n) >= 0)
+    )
+    edges = np.minimum(
+        np.minimum(_point_segment_distance(p, a, b), _point_segment_distance(p, b, c)),
+        _point_segment_distance(p, c, a),
+    )
+    return np.where(inside, np.abs(height), edges)
 
 
 def build_sdf_grid(
@@ -198,8 +227,7 @@ def build_sdf_grid(
     axes = [lo[a] + spacing * np.arange(shape[a]) for a in range(3)]
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
-    samples, normals = _surface_samples(mesh, spacing, seed)
-    sample_gap = float(np.sqrt(mesh.area / len(samples)))
+    samples, faces = _surface_samples(mesh, spacing, seed)
 
     # Voxelised surface shell; its flood fill gives inside/outside away from the surface
     # and its Euclidean distance transform the (coarse) distance there.
@@ -218,16 +246,29 @@ def build_sdf_grid(
     band = max(band_width, 3.0 * spacing) + 2.0 * spacing
     band_inside = max(inside_band_width, 2.0 * spacing) + 2.0 * spacing
     near_nodes = np.flatnonzero((values <= band) & (values >= -band_inside))
+    # The shell above needs dense samples to be closed; finding a nearby triangle for the
+    # exact distance needs about a third of them.
+    # Every triangle is represented by its centroid too.
+    samples = np.vstack([samples[::3], mesh.triangles_center])
+    faces = np.concatenate([faces[::3], np.arange(len(mesh.faces))])
+    normals = np.asarray(mesh.face_normals)[faces]
     tree = cKDTree(samples)
-    dist, idx = tree.query(nodes[near_nodes], k=1, distance_upper_bound=band, workers=-1)
-    found = np.isfinite(dist)
-    near_nodes, dist, idx = near_nodes[found], dist[found], idx[found]
+    dist3, idx3 = tree.query(nodes[near_nodes], k=3, distance_upper_bound=band, workers=-1)
+    found = np.isfinite(dist3[:, 0])
+    near_nodes, dist3, idx3 = near_nodes[found], dist3[found], idx3[found]
+    dist, idx = dist3[:, 0], idx3[:, 0]
     offset = nodes[near_nodes] - samples[idx]
     along = np.einsum("ij,ij->i", offset, normals[idx])
-    lateral = np.sqrt(np.maximum(dist**2 - along**2, 0.0))
-    # Tangent-plane distance where the node lies over its nearest sample (flat or smooth
-    # parts); the distance to the sample itself beyond edges and corners.
-    exact = np.where(lateral <= 2.0 * sample_gap, np.abs(along), dist)
+    # Exact distance to the triangles the nearest samples lie on (the closest triangle or
+    # its neighbours).
+    # The minimum over the triangles of the three nearest samples.
+    triangles = np.asarray(mesh.triangles)
+    exact = dist.copy()
+    for j in range(3):
+        ok = np.isfinite(dist3[:, j])
+        tri = triangles[faces[np.where(ok, idx3[:, j], 0)]]
+        d_j = point_triangle_distance(nodes[near_nodes], tri[:, 0], tri[:, 1], tri[:, 2])
+        exact = np.where(ok, np.minimum(exact, d_j), exact)
     sign_plane = np.where(along < 0.0, -1.0, 1.0)
     # Beside a face's edge the nearest sample's plane says nothing (along ~ 0): take the
     # side of the neighbouring sample the node lies most squarely over.

@@ -228,7 +228,9 @@ def test_the_palm_faces_the_object_for_any_wrist_angles(models, hand) -> None:
         support = (model.obj.hull_vertices - centre[:, None, :]) @ wrist[:, :3, 2][..., None]
         palm_face = hand.palm_center[2] + hand.palm_half_extents[2]
         expected = palm_face + model.settings.clearance + x[:, STANDOFF_INDEX] - hand.grasp_center[2]
-        np.testing.assert_allclose(support[..., 0].min(axis=1), expected, atol=1e-9, err_msg=name)
+        # The model's support points sample the hull's support function along 2,000
+        # directions: within about 0.1 mm of the exact hull (far below the clearance).
+        np.testing.assert_allclose(support[..., 0].min(axis=1), expected, atol=1e-4, err_msg=name)
 
 
 def test_blocked_fingers_on_the_cube(models) -> None:
