@@ -466,6 +466,7 @@ class GraspPlannerNode(Node):
     async def _run(self, req: Any, goal_handle: Any = None) -> tuple[str, _Outcome, Header]:
         """Check ``req``, queue it and await the worker's outcome (never raises)."""
         request_id = str(uuid.uuid4())
+        t_enter = time.perf_counter()
         header = Header(stamp=req.object_pose.header.stamp, frame_id=req.object_pose.header.frame_id)
         try:
             job = self._parse_request(req, request_id, goal_handle)
@@ -486,7 +487,13 @@ class GraspPlannerNode(Node):
         except RuntimeError:  # the pool is shut down
             self._release()
             return request_id, _Outcome(False, "node shutting down"), job.header
+        t_queued = time.perf_counter()
         outcome = await future
+        t_resumed = time.perf_counter()
+        self.get_logger().debug(
+            f"request {request_id}: timing: checks {1e3 * (t_queued - t_enter):.2f} ms, "
+            f"worker {1e3 * outcome.worker_time:.2f} ms, wait incl. queue and hand-back "
+            f"{1e3 * (t_resumed - t_queued - outcome.worker_time):.2f} ms")
         return request_id, outcome, job.header
 
     async def _on_plan_service(self, request: PlanGrasp.Request, response: PlanGrasp.Response):
@@ -534,13 +541,18 @@ class GraspPlannerNode(Node):
             outcome = _Outcome(False, f"internal error: {type(exc).__name__}: {exc}")
         finally:
             self._release()
+        completed = False
         if executor is not None:
             try:
                 executor.create_task(future.set_result, outcome)
-                return
+                completed = True
             except Exception:  # noqa: BLE001 -- executor gone: nobody will resume anyway
                 pass
-        future.set_result(outcome)
+        if not completed:
+            future.set_result(outcome)
+        # After the answer is on its way: the markers of the grasp, for RViz.
+        if outcome.result is not None:
+            self._publish_markers(job, outcome.result)
 
     def _build_object(self, job: _Job) -> objects.GraspObject:
         if job.source == "object_name":
@@ -612,7 +624,6 @@ class GraspPlannerNode(Node):
             self.get_logger().info(f"request {job.request_id}: {exc}")
             return _Outcome(False, str(exc), worker_time=elapsed())
         worker_time = elapsed()
-        self._publish_markers(job, result)
 
         summary = (f"{result.n_contacts} contacts, fitness {result.fitness:.3f}, epsilon "
                    f"{result.epsilon:.4f}, force closure {'yes' if result.force_closure else 'no'}, "
