@@ -111,7 +111,7 @@ class ContactSettings:
     max_penetration: float = 0.0005
     clearance: float = 0.008
     standoff_max: float = 0.05
-    coarse_steps: int = 16
+    coarse_steps: int = 12
     refine_steps: int = 5
     finger_overlap: float = 0.002
     link_contact_tolerance: float = 0.001
@@ -422,7 +422,8 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
     joints = pts[..., _JOINT_INDEX, :]
     collide = finger_collisions(joints, np.array([*hand.link_radii[:2], hand.pad_radius]), settings.finger_overlap)
     # Fingers through the palm (a free finger closed to its limits can fold back into it).
-    in_palm = np.einsum("pji,pfkj->pfki", rot, pts[..., _CLEAR_OF_PALM, :] - trans[:, None, None, :])
+    rel = (pts[..., _CLEAR_OF_PALM, :] - trans[:, None, None, :]).reshape(n, -1, 3)
+    in_palm = (rel @ rot).reshape(n, N_FINGERS, -1, 3)  # rows: R^T (p - t)
     depth = palm_penetration(in_palm, hand.palm_center, hand.palm_half_extents)
     collide |= depth.max(axis=-1) > settings.palm_overlap
 
