@@ -51,6 +51,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -76,6 +77,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
@@ -671,35 +673,74 @@ class GraspPlannerNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Console script ``planner_node``: run the node until SIGINT / SIGTERM.
 
-    Owns ``rclpy.init``, a MultiThreadedExecutor spin and the clean shutdown (the
-    running plan is stopped, the node destroyed, rclpy shut down). Returns 0 after a
-    signal, 1 when the node cannot start (for example an invalid parameter).
+    Owns ``rclpy.init``, a MultiThreadedExecutor spin and the clean shutdown: on SIGINT
+    or SIGTERM the running plan is stopped (its caller is answered), queued requests are
+    dropped, the executor is shut down, the node destroyed and rclpy shut down; the exit
+    status is then 0. A second signal during the shutdown exits at once (status 130).
+    Returns 1 when the node cannot start (for example an invalid parameter).
+
+    The executor spins in a thread and the main thread waits for a signal with Python
+    handlers installed instead of rclpy's (``SignalHandlerOptions.NO``): with rclpy's
+    handlers a SIGINT that arrives while the main thread is blocked in the executor's
+    wait can be lost (rclpy wakes the wait set before Python's own handler has run, and
+    the main thread blocks again), which left the node running after one SIGINT.
     """
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    signals: list[int] = []
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        if stop.is_set() and signals:
+            os.write(2, b"[grasp_apso] second signal: exiting now\n")
+            os._exit(130)
+        signals.append(signum)
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     executor = None
+    spinner = None
+    errors: list[BaseException] = []
     status = 0
     try:
         node = GraspPlannerNode()
         executor = MultiThreadedExecutor(num_threads=max(4, os.cpu_count() or 2))
         executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+
+        def spin() -> None:
+            try:
+                executor.spin()
+            except ExternalShutdownException:
+                pass
+            except BaseException as exc:  # noqa: BLE001 -- reported by the main thread
+                errors.append(exc)
+                traceback.print_exc()
+            finally:
+                stop.set()
+
+        spinner = threading.Thread(target=spin, name="grasp_apso_executor", daemon=True)
+        spinner.start()
+        while not stop.wait(0.5):
+            pass
+        if errors:
+            status = 1
+        elif signals:
+            node.get_logger().info(f"{signal.Signals(signals[0]).name}: shutting down")
     except Exception as exc:  # noqa: BLE001 -- report start-up failures readably
         print(f"[grasp_apso] error: {exc}", file=sys.stderr)
         status = 1
     finally:
         if node is not None:
-            try:
-                node.stop_worker(wait=True)
-            except Exception:  # noqa: BLE001
-                pass
+            node.stop_worker(wait=True)
         if executor is not None:
             executor.shutdown(timeout_sec=5.0)
+        if spinner is not None:
+            spinner.join(timeout=5.0)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return status
 
 
