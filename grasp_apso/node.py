@@ -48,6 +48,7 @@ verification), so ``round trip - planning_time`` is the ROS overhead (transport,
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import math
 import os
@@ -712,6 +713,10 @@ def main(args: list[str] | None = None) -> int:
         node = GraspPlannerNode()
         executor = MultiThreadedExecutor(num_threads=max(4, os.cpu_count() or 2))
         executor.add_node(node)
+        # The ~100k objects of the imported libraries never die: keep them out of the
+        # cyclic garbage collector, whose full collections otherwise cost 50+ ms pauses
+        # while a large request (thousands of message objects) is deserialised.
+        gc.freeze()
 
         def spin() -> None:
             try:
