@@ -173,8 +173,23 @@ _SPECS = {spec.name: spec for spec in PARAMETERS}
 _OBJECT_CACHE_SIZE = 8
 
 
-def _wake(_future: Future) -> None:
-    """Done callback whose only job is to be scheduled (it wakes the executor)."""
+def _complete(future: Future, outcome: Any, executor: Any) -> None:
+    """Executor task: complete ``future``, then wake the executor once more.
+
+    An awaiting coroutine is only re-polled when the executor wakes up; the second task
+    (whose creation triggers the executor's guard condition) makes that happen right after
+    the result is set, not at the next unrelated event. During shutdown the executor may
+    be gone; then nobody awaits any more.
+    """
+    future.set_result(outcome)
+    try:
+        executor.create_task(_nothing)
+    except Exception:  # noqa: BLE001 -- executor shut down
+        pass
+
+
+def _nothing() -> None:
+    """A task that does nothing (its creation wakes the executor)."""
 
 
 class RequestError(ValueError):
@@ -488,13 +503,9 @@ class GraspPlannerNode(Node):
             self.get_logger().info(f"request {request_id}: {busy}")
             return request_id, _Outcome(False, busy), job.header
         executor = self.executor
-        # Completed by the worker through executor.create_task(future.set_result, ...).
-        # The awaiting coroutine is only re-polled when the executor wakes up; the done
-        # callback makes set_result schedule one more task, whose guard condition trigger
-        # wakes the executor right away (without it the answer waited for an unrelated
-        # wake-up, 4-20 ms).
-        future = Future(executor=executor)
-        future.add_done_callback(_wake)
+        # Completed by the worker through executor.create_task(_complete, ...): completing
+        # an rclpy Future from another thread does not wake the awaiting coroutine.
+        future = Future()
         try:
             self._worker.submit(self._work, job, future, executor)
         except RuntimeError:  # the pool is shut down
@@ -556,7 +567,7 @@ class GraspPlannerNode(Node):
             self._release()
         if executor is not None:
             try:
-                executor.create_task(future.set_result, outcome)
+                executor.create_task(_complete, future, outcome, executor)
                 return
             except Exception:  # noqa: BLE001 -- executor shut down: nobody awaits any more
                 pass
@@ -724,8 +735,9 @@ def main(args: list[str] | None = None) -> int:
             except ExternalShutdownException:
                 pass
             except BaseException as exc:  # noqa: BLE001 -- reported by the main thread
-                errors.append(exc)
-                traceback.print_exc()
+                if not stop.is_set():  # errors of a spin being shut down do not matter
+                    errors.append(exc)
+                    traceback.print_exc()
             finally:
                 stop.set()
 
