@@ -88,17 +88,21 @@ def evaluate(
     pts, nrm = decoded.contact_points, decoded.contact_normals
 
     shape = np.full(len(nc), np.nan)
-    poly = nc >= 3
+    balance = np.full(len(nc), np.nan)
+    equilibrium = np.full(len(nc), np.nan)
+    poly = active & (nc >= 3)
     if poly.any():
         shape[poly] = 1.0 - polygon_shape_q(pts[poly], mask[poly])
-    pair = nc == 2
+    pair = active & (nc == 2)
     if pair.any():
         shape[pair] = 0.5 * antipodal_score(pts[pair], nrm[pair], mask[pair])
-    balance = 1.0 - force_balance_residual(pts, mask, com)
-    residual = normal_wrench_residual(pts, nrm, mask, com, float(model.obj.characteristic_radius))
-    # Collinear contacts balance without holding: scale by the polygon's regularity.
-    regular = np.where(nc >= 3, np.clip(np.nan_to_num(shape) / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
-    equilibrium = (1.0 - np.minimum(residual, 1.0)) * regular
+    if active.any():
+        p, m, n = pts[active], mask[active], nrm[active]
+        balance[active] = 1.0 - force_balance_residual(p, m, com)
+        residual = normal_wrench_residual(p, n, m, com, float(model.obj.characteristic_radius))
+        # Collinear contacts balance without holding: scale by the polygon's regularity.
+        regular = np.where(nc[active] >= 3, np.clip(shape[active] / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
+        equilibrium[active] = (1.0 - np.minimum(residual, 1.0)) * regular
     count = (nc - 1) / 4.0
     score = (
         W_SHAPE * shape + W_BALANCE * balance + W_EQUILIBRIUM * equilibrium

@@ -19,6 +19,7 @@ with i = 0..4 for little, ring, middle, index, thumb.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from importlib import resources
@@ -379,8 +380,21 @@ def default_hand_path() -> Path:
 
 
 def load_hand(path: str | Path | None = None) -> HandModel:
-    """Load a hand description file (YAML); ``None`` loads the shipped paper hand."""
+    """Load a hand description file (YAML); ``None`` loads the shipped paper hand.
+
+    Models are immutable and cached per file (path, modification time and size).
+    """
     path = default_hand_path() if path is None or str(path) == "" else Path(path)
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise ValueError(f"hand description: cannot read {path}: {exc.strerror}") from exc
+    return _load_hand_cached(str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=16)
+def _load_hand_cached(path_str: str, _mtime_ns: int, _size: int) -> HandModel:
+    path = Path(path_str)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
