@@ -473,7 +473,7 @@ def test_ten_concurrent_callers_all_answered(ros):
             assert c.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
         assert params.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
         t0 = time.monotonic()
-        futures = [c.call_async(builtin_request('sphere', iterations=6)) for c in clients]
+        futures = [c.call_async(builtin_request('sphere', iterations=20)) for c in clients]
         # While the first plan runs: a parameter read is answered.
         reply = wait_future(params.call_async(GetParameters.Request(names=['particles'])), 10.0)
         assert reply.values[0].integer_value == 20
@@ -542,7 +542,7 @@ def test_action_cancel_stops_within_one_iteration(ros, action_client):
         first.set()
 
     goal_handle = wait_future(
-        action_client.send_goal_async(_goal(iterations=200), feedback_callback=on_feedback), 10.0)
+        action_client.send_goal_async(_goal(iterations=2000), feedback_callback=on_feedback), 10.0)
     assert goal_handle.accepted
     assert first.wait(30.0), 'no feedback'
     cancel = wait_future(goal_handle.cancel_goal_async(), 10.0)
@@ -554,16 +554,18 @@ def test_action_cancel_stops_within_one_iteration(ros, action_client):
     # Cancel was sent after the first feedback; the plan stops at the next iteration check.
     # Allow for the feedback's and the cancel request's trip through DDS.
     assert 1 <= result.iterations_run <= 10, result.iterations_run
+    assert max(seen) <= result.iterations_run
     # The node serves the next goal.
     res = ros.call(builtin_request('cube', iterations=2))
     assert res.success, res.message
 
 
 def test_busy_action_goal_is_aborted_with_a_reason(ros, action_client):
-    ros.set_parameters(queue_length=0)
+    # One long plan (stopped by plan_timeout, so the test does not depend on planner speed).
+    ros.set_parameters(queue_length=0, plan_timeout=2.0)
     try:
         before = ros.progress.total()
-        running = ros.client.call_async(builtin_request('sphere', iterations=60))
+        running = ros.client.call_async(builtin_request('sphere', iterations=10000))
         # The service plan is running once its first progress message arrived.
         assert ros.progress.wait_total(before + 1, 30.0) > before
         goal_handle = wait_future(action_client.send_goal_async(_goal(iterations=3)), 10.0)
@@ -571,6 +573,7 @@ def test_busy_action_goal_is_aborted_with_a_reason(ros, action_client):
         assert wrapped.status == GoalStatus.STATUS_ABORTED
         assert not wrapped.result.success and wrapped.result.message.startswith('busy')
         answer = wait_future(running, CALL_TIMEOUT)
-        assert answer.success, answer.message
+        assert not answer.success and 'timed out' in answer.message
+        assert answer.configuration.name  # the best grasp so far is still returned
     finally:
-        ros.set_parameters(queue_length=2)
+        ros.set_parameters(queue_length=2, plan_timeout=60.0)
