@@ -58,6 +58,14 @@ class ShapeClass:
     extents: np.ndarray
     box_fill: float
 
+    @property
+    def standoff_per_width(self) -> float:
+        """GRG standoff range, in widths of the object: a sphere-like object is held far
+        enough from the palm for the thumb to oppose the fingers (measured: the thumb's
+        legal contacts on the 5 cm sphere need 24-50 mm); the others closer, where four
+        fingers and the thumb reach around them."""
+        return 1.0 if self.name == "sphere-like" else 0.6
+
     def sample_wrists(self, n: int, rng: np.random.Generator, guided_fraction: float = 0.8) -> np.ndarray:
         """Wrist rotations (palm in the object frame) guided by the class.
 
@@ -182,13 +190,14 @@ class PreshapeRanges:
         Standoff offsets drawn in [0, max(standoff_max, standoff_per_width * width)],
         width the object's smallest extent (the shape factor's standoff tuning: a big
         object is held away from the palm so the fingers can curl around it).
-    standoff_per_width : float
+    standoff_per_width : float or None
+        None: the shape class's value (:attr:`ShapeClass.standoff_per_width`).
     """
 
     flexion_max: float = 0.6
     thumb_pivot_min: float = 0.3
     standoff_max: float = 0.02
-    standoff_per_width: float = 0.6
+    standoff_per_width: float | None = None
 
     def opened(self, factor: float) -> "PreshapeRanges":
         """Ranges for regenerating an illegal finger: flexion range times ``factor``,
@@ -218,7 +227,8 @@ def sample_particles(
     x = np.empty((n, N_DIMS))
     x[:, :15] = sample_fingers(model, n, rng, ranges)
     x[:, 15:18] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
-    top = max(ranges.standoff_max, ranges.standoff_per_width * float(shape.extents[-1]))
+    per_width = shape.standoff_per_width if ranges.standoff_per_width is None else ranges.standoff_per_width
+    top = max(ranges.standoff_max, per_width * float(shape.extents[-1]))
     x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(top, model.upper[STANDOFF_INDEX]), n)
     return x
 
