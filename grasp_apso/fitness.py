@@ -18,8 +18,9 @@ in [0, 1] (weights 0.20, 0.15, 0.35, 0.20, 0.10), with
   four-finger-and-thumb grasps that can. ``1 - min(1, r)`` with ``r`` the distance from
   the origin to the convex hull of the contacts' unit normal wrenches
   (:func:`grasp_apso.quality.normal_wrench_residual`): 0 when a squeeze along the
-  contact normals balances force and torque, which with friction and three or more
-  non-collinear contacts is force closure. Collinear contacts balance without being
+  contact normals in which every contact carries at least a quarter of the mean load
+  balances force and torque, which with friction and three or more non-collinear
+  contacts is force closure. Collinear contacts balance without being
   force closure, so for nc >= 3 the term is scaled by ``min(1, (1 - Q) / 0.5)`` (full
   for polygons better than Q = 0.5) and for nc = 2 by 0.5;
 - ``count``: ``(nc - 1) / 4``, more fingertip contacts are better (2 -> 0.25, 5 -> 1);
@@ -51,6 +52,8 @@ W_EQUILIBRIUM = 0.35
 W_COUNT = 0.20
 W_FACTOR = 0.10
 GAP_SCALE = 0.1
+#: Each contact carries at least this fraction of the mean share of the squeeze.
+MIN_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -99,7 +102,9 @@ def evaluate(
     if active.any():
         p, m, n = pts[active], mask[active], nrm[active]
         balance[active] = 1.0 - force_balance_residual(p, m, com)
-        residual = normal_wrench_residual(p, n, m, com, float(model.obj.characteristic_radius))
+        residual = normal_wrench_residual(
+            p, n, m, com, float(model.obj.characteristic_radius), min_share=MIN_SHARE
+        )
         # Collinear contacts balance without holding: scale by the polygon's regularity.
         regular = np.where(nc[active] >= 3, np.clip(shape[active] / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
         equilibrium[active] = (1.0 - np.minimum(residual, 1.0)) * regular

@@ -542,7 +542,8 @@ def _finger_subsets(n_fingers: int) -> list[np.ndarray]:
 
 
 def normal_wrench_residual(
-    points: np.ndarray, normals: np.ndarray, mask: np.ndarray, com: np.ndarray, torque_scale: float
+    points: np.ndarray, normals: np.ndarray, mask: np.ndarray, com: np.ndarray, torque_scale: float,
+    min_share: float = 0.0,
 ) -> np.ndarray:
     """Distance from the origin to the convex hull of the contacts' normal wrenches.
 
@@ -560,6 +561,14 @@ def normal_wrench_residual(
     mask : (P, F) bool
     com : (3,) float, m
     torque_scale : float, m (characteristic radius of the object)
+    min_share : float in [0, 1)
+        Every contact must carry at least ``min_share / nc`` of the squeeze. With 0 a
+        balanced subset suffices (contacts may carry nothing); force closure needs every
+        contact loaded (an internal force strictly inside every cone), so the planner
+        uses 0.25: a squeeze of two opposed fingers with three more pushing one way is
+        then not balanced. Implemented by shifting the points: with weights
+        ``a_i = delta + (1 - nc delta) b_i``, ``sum a_i w_i`` is a convex combination of
+        ``(1 - nc delta) w_i + delta sum_j w_j``.
 
     Returns
     -------
@@ -573,6 +582,13 @@ def normal_wrench_residual(
     force = -np.where(mask[..., None], normals, 0.0)
     torque = np.cross(np.where(mask[..., None], points, 0.0) - com, force) / torque_scale
     wrench = np.concatenate([force, torque], axis=-1)  # (P, F, 6)
+    if not 0.0 <= min_share < 1.0:
+        raise ValueError(f"min_share: expected [0, 1), got {min_share!r}")
+    if min_share > 0.0:
+        nc = np.maximum(mask.sum(axis=1), 1)[:, None, None]
+        delta = min_share / nc
+        total = (wrench * mask[..., None]).sum(axis=1, keepdims=True)
+        wrench = (1.0 - nc * delta) * wrench + delta * total
     n_p, n_f = mask.shape
     # A single contact's wrench has norm >= 1: the hull of one point never beats that.
     best = np.where(mask.any(axis=1), 1.0, np.inf)

@@ -124,3 +124,26 @@ def test_normal_wrench_residual_known_cases():
     assert r[2] == pytest.approx(0.0, abs=1e-9)
     with pytest.raises(ValueError, match="torque_scale"):
         normal_wrench_residual(pts, normals, mask, np.zeros(3), 0.0)
+
+
+def test_every_contact_must_carry_load_in_the_equilibrium():
+    # A grasp APSO returned on the cube (seed 4) that is not force closure: little and
+    # thumb opposed along x, three fingers pushing +y with nothing pushing back. The
+    # opposed pair alone balances, so without a minimum share the residual is ~0.
+    pts = np.array([[-35.0, -31.4, -27.7], [-19.5, -35.0, 1.0], [6.9, -35.0, 8.1],
+                    [35.0, -35.0, -17.7], [35.0, -31.5, -27.6]])[None] / 1000
+    normals = np.array([[-1.0, 0, 0], [0, -1.0, 0], [0, -1.0, 0], [0.08, -1.0, 0], [1.0, 0, 0]])[None]
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    mask = np.ones((1, 5), bool)
+    radius = float(builtin("cube").characteristic_radius)
+    assert normal_wrench_residual(pts, normals, mask, np.zeros(3), radius)[0] < 0.005
+    assert normal_wrench_residual(pts, normals, mask, np.zeros(3), radius, min_share=F.MIN_SHARE)[0] > 0.1
+    # A balanced tripod keeps a zero residual with the minimum share.
+    tri = np.zeros((1, 5, 3))
+    tri[0, :3] = _ring([0, 120, 240])
+    tri_mask = np.zeros((1, 5), bool)
+    tri_mask[0, :3] = True
+    tri_normals = np.where(tri_mask[..., None], tri / RADIUS, [0, 0, 1.0])
+    assert normal_wrench_residual(tri, tri_normals, tri_mask, np.zeros(3), RADIUS, min_share=F.MIN_SHARE)[0] < 1e-9
+    with pytest.raises(ValueError, match="min_share"):
+        normal_wrench_residual(tri, tri_normals, tri_mask, np.zeros(3), RADIUS, min_share=1.0)
