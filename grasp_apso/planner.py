@@ -59,9 +59,9 @@ class PlanOptions:
     max_evaluations : int
         Cap on particle decodes (0: none), for equal-budget comparisons.
     contact_tolerance : float, m
-        Fingertip contact tolerance and accepted penetration (0 < t <= 0.02).
+        A fingertip pad this close to the surface is a contact (0 < t <= 0.02).
     friction : float
-        Coulomb friction coefficient for the fitness cone term and epsilon (0 < mu <= 5).
+        Coulomb friction coefficient of the Ferrari-Canny epsilon (0 < mu <= 5).
     friction_edges : int
         Edges of the linearised friction cones (3..64).
     wrist_position : (3,) float or None, m
@@ -69,15 +69,16 @@ class PlanOptions:
     """
 
     algorithm: str = "apso"
-    particles: int = 60
-    iterations: int = 50
-    neighborhood_size: int = 5
-    c1: float = 1.0
-    c2: float = 1.5
-    inertia: float = 0.6
-    stall_iterations: int = 3
-    improvement: float = 1e-3
-    max_evaluations: int = 0
+    # Swarm defaults have one source of truth: SwarmOptions.
+    particles: int = SwarmOptions.particles
+    iterations: int = SwarmOptions.iterations
+    neighborhood_size: int = SwarmOptions.neighborhood_size
+    c1: float = SwarmOptions.c1
+    c2: float = SwarmOptions.c2
+    inertia: float = SwarmOptions.inertia
+    stall_iterations: int = SwarmOptions.stall_iterations
+    improvement: float = SwarmOptions.improvement
+    max_evaluations: int = SwarmOptions.max_evaluations
     contact_tolerance: float = 0.002
     friction: float = 0.5
     friction_edges: int = 8
