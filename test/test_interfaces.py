@@ -6,7 +6,6 @@ messages with rclpy, and sends a request and an action goal through the middlewa
 """
 import math
 import threading
-import time
 
 import pytest
 
@@ -262,9 +261,7 @@ def ros_context():
 
 
 def _spin_until(executor, future, timeout):
-    deadline = time.monotonic() + timeout
-    while not future.done() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
+    executor.spin_until_future_complete(future, timeout_sec=timeout)
     return future.done()
 
 
@@ -321,7 +318,6 @@ def test_action_goal_feedback_result_through_middleware(ros_context):
             fb.progress.iteration = i
             fb.progress.iterations = goal_handle.request.iterations
             goal_handle.publish_feedback(fb)
-            time.sleep(0.05)
         goal_handle.succeed()
         result = PlanGraspAction.Result()
         result.success = True
@@ -337,22 +333,28 @@ def test_action_goal_feedback_result_through_middleware(ros_context):
         spinner.start()
         assert client.wait_for_server(timeout_sec=15.0), 'action server not discovered'
         goal = PlanGraspAction.Goal(object_name='sphere', iterations=3)
-        send = client.send_goal_async(goal, feedback_callback=lambda m: feedback.append(m))
-        deadline = time.monotonic() + 15.0
-        while not send.done() and time.monotonic() < deadline:
-            time.sleep(0.02)
+        three_feedbacks = threading.Event()
+
+        def on_feedback(message):
+            feedback.append(message)
+            if len(feedback) >= 3:
+                three_feedbacks.set()
+
+        def wait_done(future, timeout):
+            done = threading.Event()
+            future.add_done_callback(lambda _f: done.set())
+            return done.wait(timeout)
+
+        send = client.send_goal_async(goal, feedback_callback=on_feedback)
+        assert wait_done(send, 15.0), 'goal not answered'
         goal_handle = send.result()
         assert goal_handle is not None and goal_handle.accepted
         result_future = goal_handle.get_result_async()
-        while not result_future.done() and time.monotonic() < deadline:
-            time.sleep(0.02)
-        assert result_future.done(), 'no action result'
+        assert wait_done(result_future, 15.0), 'no action result'
         result = result_future.result().result
         assert result.success and result.message == 'sphere' and result.iterations_run == 3
-        # Feedback is best effort in time, but all three arrive before the result here.
-        deadline = time.monotonic() + 2.0
-        while len(feedback) < 3 and time.monotonic() < deadline:
-            time.sleep(0.02)
+        # Feedback is best effort in time, but all three arrive around the result.
+        assert three_feedbacks.wait(5.0), f'{len(feedback)} of 3 feedback messages'
         assert [m.feedback.progress.iteration for m in feedback] == [1, 2, 3]
         assert all(m.feedback.progress.iterations == 3 for m in feedback)
     finally:
