@@ -366,7 +366,6 @@ def plot_grasp(
     # Scene bounds: object, palm, fingers; equal ranges on every axis.
     pts = np.vstack([verts, palm, joints.reshape(-1, 3)])
     lo, hi = pts.min(axis=0) - pad_mm, pts.max(axis=0) + pad_mm
-    center = (lo + hi) / 2
     bar_mm = _nice_length(float((hi - lo).max()))
 
     camera = {
