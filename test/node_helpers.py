@@ -33,13 +33,77 @@ def wait_for(predicate, timeout, interval=0.01):
         time.sleep(interval)
 
 
-def wait_future(future, timeout):
-    """Wait for an rclpy Future completed by an executor spinning in another thread."""
+def wait_future(future, timeout, spinners=()):
+    """Wait for an rclpy Future completed by an executor spinning in another thread.
+
+    ``spinners`` (:class:`SpinningNode`) are checked while waiting: when one of their
+    executors died, the wait fails at once with its error instead of running into the
+    timeout (a dead client executor never completes any future).
+    """
     done = threading.Event()
     future.add_done_callback(lambda _f: done.set())
-    if not done.wait(timeout):
-        raise TimeoutError(f'no result within {timeout} s')
+    deadline = time.monotonic() + timeout
+    while not done.wait(min(0.25, max(0.0, deadline - time.monotonic()))):
+        for spinner in spinners:
+            spinner.check()
+        if time.monotonic() >= deadline:
+            raise TimeoutError(f'no result within {timeout} s')
     return future.result()
+
+
+class SpinningNode:
+    """A node spun by an executor of its own on a background thread.
+
+    Destroying a subscription or client while an executor in another thread waits on it
+    is a race in rclpy (ros2/rclpy#1206): the spin thread can die with ``InvalidHandle``,
+    and from then on nothing of that node is served (every later call times out). So
+    tests never destroy entities of a spinning node: short-lived subscriptions and clients
+    get a ``SpinningNode`` of their own, and :meth:`close` shuts the executor down and
+    joins its thread *before* destroying the node. A spin thread that dies anyway is
+    reported by :meth:`check` (and by :func:`wait_future`).
+    """
+
+    def __init__(self, context, name, num_threads=2, node=None):
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+
+        self.node = node if node is not None else rclpy.create_node(name, context=context)
+        self.executor = MultiThreadedExecutor(num_threads=num_threads, context=context)
+        self.executor.add_node(self.node)
+        self.error = None
+        self._thread = threading.Thread(target=self._spin, name=f'spin_{name}', daemon=True)
+
+    def _spin(self):
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            self.executor.spin()
+        except ExternalShutdownException:
+            pass
+        except BaseException as exc:  # noqa: BLE001 -- reported by check()
+            self.error = exc
+
+    def start(self):
+        self._thread.start()
+        return self
+
+    def check(self):
+        """Raise when the executor's thread died with an error."""
+        if self.error is not None:
+            raise RuntimeError(f'executor of {self.node.get_name()!r} died: '
+                               f'{type(self.error).__name__}: {self.error}') from self.error
+
+    def close(self):
+        self.executor.shutdown(timeout_sec=5.0)
+        self._thread.join(timeout=5.0)
+        self.node.destroy_node()
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *_exc):
+        self.close()
+
 
 
 def table_pose(position=(0.4, -0.1, 0.8), rpy=(0.3, -0.2, 0.5), frame='table'):

@@ -1,8 +1,8 @@
 """The grasp_apso node in this process, clients in this process, over real DDS (no launch).
 
 The node spins in a MultiThreadedExecutor on a background thread, the clients in
-another executor on another thread; the test thread waits on futures and events with
-timeouts. Plans are kept small (20 particles, <= 8 iterations) so the module runs in
+another executor on another thread (``node_helpers.SpinningNode``: no entity is destroyed
+while its executor spins); the test thread waits on futures and events with timeouts. Plans are kept small (20 particles, <= 8 iterations) so the module runs in
 well under a minute on 2 cores.
 """
 import math
@@ -17,7 +17,6 @@ rclpy = pytest.importorskip('rclpy')
 
 from action_msgs.msg import GoalStatus  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
@@ -27,7 +26,7 @@ from grasp_apso_interfaces.msg import GraspProgress  # noqa: E402
 from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 
 from node_helpers import (  # noqa: E402
-    DISCOVERY_TIMEOUT, ProgressCounter, identity_pose, table_pose, wait_for, wait_future)
+    DISCOVERY_TIMEOUT, ProgressCounter, SpinningNode, identity_pose, table_pose, wait_for, wait_future)
 
 from grasp_apso import objects  # noqa: E402
 from grasp_apso.conversions import arrays_to_mesh  # noqa: E402
@@ -41,21 +40,37 @@ CALL_TIMEOUT = 60.0
 
 
 class Harness:
-    """The node, a client node and their executors."""
+    """The node and a client node, each spun by its own executor.
 
-    def __init__(self, context, node, client_node, mesh_dir):
+    Every entity of the client node lives as long as the module (see
+    :class:`node_helpers.SpinningNode` for why nothing is destroyed while it spins);
+    tests that need short-lived entities make a ``SpinningNode`` of their own.
+    """
+
+    def __init__(self, context, server, client, mesh_dir):
+        from rcl_interfaces.srv import GetParameters, SetParameters
+
         self.context = context
-        self.node = node
-        self.client_node = client_node
+        self.server = server
+        self.node = server.node
+        self.client_spinner = client
+        self.client_node = client.node
         self.mesh_dir = mesh_dir
-        self.client = client_node.create_client(PlanGrasp, '/grasp_apso/plan_grasp')
+        self.client = self.client_node.create_client(PlanGrasp, '/grasp_apso/plan_grasp')
+        self.set_params_client = self.client_node.create_client(SetParameters, '/grasp_apso/set_parameters')
+        self.get_params_client = self.client_node.create_client(GetParameters, '/grasp_apso/get_parameters')
+        self.action_client = ActionClient(self.client_node, PlanGraspAction, '/grasp_apso/plan_grasp')
         self.progress = ProgressCounter()
-        self.progress_sub = client_node.create_subscription(
+        self.progress_sub = self.client_node.create_subscription(
             GraspProgress, '/grasp_apso/progress', self.progress,
             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
 
-    def call(self, request, timeout=CALL_TIMEOUT, client=None):
-        return wait_future((client or self.client).call_async(request), timeout)
+    def wait(self, future, timeout=CALL_TIMEOUT, extra=()):
+        """The future's result; fails at once when an executor of the harness died."""
+        return wait_future(future, timeout, spinners=(self.server, self.client_spinner, *extra))
+
+    def call(self, request, timeout=CALL_TIMEOUT):
+        return self.wait(self.client.call_async(request), timeout)
 
     def set_parameters(self, **values):
         """Set node parameters through the node API (the same callbacks as over ROS)."""
@@ -112,28 +127,21 @@ def ros(mesh_dir):
         Parameter('particles', value=20),
         Parameter('iterations', value=8),
     ])
-    client_node = rclpy.create_node('grasp_apso_test_client', context=context)
-    node_executor = MultiThreadedExecutor(num_threads=4, context=context)
-    node_executor.add_node(node)
-    client_executor = MultiThreadedExecutor(num_threads=2, context=context)
-    client_executor.add_node(client_node)
-    threads = [threading.Thread(target=e.spin, daemon=True) for e in (node_executor, client_executor)]
-    for t in threads:
-        t.start()
-    harness = Harness(context, node, client_node, mesh_dir)
+    server = SpinningNode(context, 'grasp_apso', num_threads=4, node=node)
+    client = SpinningNode(context, 'grasp_apso_test_client')
+    harness = Harness(context, server, client, mesh_dir)  # entities first, then spin
+    server.start()
+    client.start()
     try:
         assert harness.client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), 'service not found'
+        assert harness.action_client.wait_for_server(timeout_sec=DISCOVERY_TIMEOUT), 'action not found'
         # Progress is volatile: make sure the node's publisher has matched our subscriber.
         assert wait_for(lambda: node._progress_pub.get_subscription_count() >= 1
                         and harness.progress_sub.get_publisher_count() >= 1, DISCOVERY_TIMEOUT)
         yield harness
     finally:
-        node_executor.shutdown(timeout_sec=5.0)
-        client_executor.shutdown(timeout_sec=5.0)
-        for t in threads:
-            t.join(timeout=5.0)
-        node.destroy_node()
-        client_node.destroy_node()
+        server.close()
+        client.close()
         rclpy.shutdown(context=context)
 
 
@@ -203,11 +211,13 @@ def test_markers_for_rviz_are_latched(ros):
         received.append(msg)
         got.set()
 
-    sub = ros.client_node.create_subscription(
+    # A late joiner: a node of its own, created after the grasp was published.
+    late = SpinningNode(ros.context, 'grasp_apso_test_rviz')
+    late.node.create_subscription(
         MarkerArray, '/grasp_apso/grasp_markers', on_markers,
         QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    try:
+    with late:
         assert got.wait(DISCOVERY_TIMEOUT), 'no latched MarkerArray'
         markers = received[-1].markers
         assert markers[0].action == Marker.DELETEALL
@@ -218,8 +228,6 @@ def test_markers_for_rviz_are_latched(ros):
         contacts = [m for m in markers if m.ns == 'grasp_apso/contacts'][0]
         assert len(contacts.points) == len(res.contact_points)
         assert len([m for m in markers if m.ns == 'grasp_apso/normals']) == len(res.contact_points)
-    finally:
-        ros.client_node.destroy_subscription(sub)
 
 
 def test_fixed_wrist_position_is_in_the_request_frame(ros):
@@ -389,14 +397,11 @@ def _remote_set(ros, **values):
     """Set parameters through the node's ROS parameter service (a real remote call)."""
     from rcl_interfaces.srv import SetParameters
 
-    client = ros.client_node.create_client(SetParameters, '/grasp_apso/set_parameters')
-    try:
-        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
-        req = SetParameters.Request(
-            parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
-        return wait_future(client.call_async(req), 10.0).results
-    finally:
-        ros.client_node.destroy_client(client)
+    client = ros.set_params_client
+    assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
+    req = SetParameters.Request(
+        parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()])
+    return ros.wait(client.call_async(req), 10.0).results
 
 
 def test_parameters_declared_with_descriptors(ros):
@@ -466,23 +471,20 @@ def test_ten_concurrent_callers_all_answered(ros):
     """
     from rcl_interfaces.srv import GetParameters
 
-    clients = [ros.client_node.create_client(PlanGrasp, '/grasp_apso/plan_grasp') for _ in range(10)]
-    params = ros.client_node.create_client(GetParameters, '/grasp_apso/get_parameters')
-    try:
+    callers = SpinningNode(ros.context, 'grasp_apso_test_callers', num_threads=4)
+    clients = [callers.node.create_client(PlanGrasp, '/grasp_apso/plan_grasp') for _ in range(10)]
+    params = ros.get_params_client
+    with callers:
         for c in clients:
             assert c.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
         assert params.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
         t0 = time.monotonic()
         futures = [c.call_async(builtin_request('sphere', iterations=20)) for c in clients]
         # While the first plan runs: a parameter read is answered.
-        reply = wait_future(params.call_async(GetParameters.Request(names=['particles'])), 10.0)
+        reply = ros.wait(params.call_async(GetParameters.Request(names=['particles'])), 10.0)
         assert reply.values[0].integer_value == 20
-        answers = [wait_future(f, CALL_TIMEOUT) for f in futures]
+        answers = [ros.wait(f, CALL_TIMEOUT, extra=(callers,)) for f in futures]
         elapsed = time.monotonic() - t0
-    finally:
-        for c in clients:
-            ros.client_node.destroy_client(c)
-        ros.client_node.destroy_client(params)
     busy = [a for a in answers if a.message.startswith('busy')]
     served = [a for a in answers if not a.message.startswith('busy')]
     assert len(busy) + len(served) == 10
@@ -501,10 +503,7 @@ def test_ten_concurrent_callers_all_answered(ros):
 
 @pytest.fixture
 def action_client(ros):
-    client = ActionClient(ros.client_node, PlanGraspAction, '/grasp_apso/plan_grasp')
-    assert client.wait_for_server(timeout_sec=DISCOVERY_TIMEOUT)
-    yield client
-    client.destroy()
+    return ros.action_client
 
 
 def _goal(name='sphere', **fields):
@@ -518,10 +517,10 @@ def _goal(name='sphere', **fields):
 
 def test_action_goal_with_feedback(ros, action_client):
     feedback = []
-    goal_handle = wait_future(
+    goal_handle = ros.wait(
         action_client.send_goal_async(_goal(iterations=5), feedback_callback=feedback.append), 10.0)
     assert goal_handle.accepted
-    wrapped = wait_future(goal_handle.get_result_async(), CALL_TIMEOUT)
+    wrapped = ros.wait(goal_handle.get_result_async(), CALL_TIMEOUT)
     result = wrapped.result
     assert wrapped.status == GoalStatus.STATUS_SUCCEEDED, result.message
     assert result.success and list(result.configuration.name) == list(JOINT_NAMES)
@@ -541,13 +540,13 @@ def test_action_cancel_stops_within_one_iteration(ros, action_client):
         seen.append(msg.feedback.progress.iteration)
         first.set()
 
-    goal_handle = wait_future(
+    goal_handle = ros.wait(
         action_client.send_goal_async(_goal(iterations=2000), feedback_callback=on_feedback), 10.0)
     assert goal_handle.accepted
     assert first.wait(30.0), 'no feedback'
-    cancel = wait_future(goal_handle.cancel_goal_async(), 10.0)
+    cancel = ros.wait(goal_handle.cancel_goal_async(), 10.0)
     assert len(cancel.goals_canceling) == 1
-    wrapped = wait_future(goal_handle.get_result_async(), CALL_TIMEOUT)
+    wrapped = ros.wait(goal_handle.get_result_async(), CALL_TIMEOUT)
     assert wrapped.status == GoalStatus.STATUS_CANCELED
     result = wrapped.result
     assert not result.success and 'cancel' in result.message
@@ -568,11 +567,11 @@ def test_busy_action_goal_is_aborted_with_a_reason(ros, action_client):
         running = ros.client.call_async(builtin_request('sphere', iterations=10000))
         # The service plan is running once its first progress message arrived.
         assert ros.progress.wait_total(before + 1, 30.0) > before
-        goal_handle = wait_future(action_client.send_goal_async(_goal(iterations=3)), 10.0)
-        wrapped = wait_future(goal_handle.get_result_async(), 10.0)
+        goal_handle = ros.wait(action_client.send_goal_async(_goal(iterations=3)), 10.0)
+        wrapped = ros.wait(goal_handle.get_result_async(), 10.0)
         assert wrapped.status == GoalStatus.STATUS_ABORTED
         assert not wrapped.result.success and wrapped.result.message.startswith('busy')
-        answer = wait_future(running, CALL_TIMEOUT)
+        answer = ros.wait(running, CALL_TIMEOUT)
         assert not answer.success and 'timed out' in answer.message
         assert answer.configuration.name  # the best grasp so far is still returned
     finally:
