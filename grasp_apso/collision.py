@@ -30,31 +30,42 @@ def segment_distances(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.nda
     -------
     (...,) float, m
     """
+    p0, p1, q0, q1 = np.broadcast_arrays(p0, p1, q0, q1)
+    shape = p0.shape[:-1]
+    # Component-major and contiguous: each dot product is three multiply-adds over all pairs.
+    p0, p1, q0, q1 = (np.ascontiguousarray(np.moveaxis(v, -1, 0)).reshape(3, -1) for v in (p0, p1, q0, q1))
     d1 = p1 - p0
     d2 = q1 - q0
     r = p0 - q0
-    a = np.einsum("...i,...i->...", d1, d1)
-    e = np.einsum("...i,...i->...", d2, d2)
-    f = np.einsum("...i,...i->...", d2, r)
-    c = np.einsum("...i,...i->...", d1, r)
-    b = np.einsum("...i,...i->...", d1, d2)
+    a = _dot(d1, d1)
+    e = _dot(d2, d2)
+    f = _dot(d2, r)
+    c = _dot(d1, r)
+    b = _dot(d1, d2)
     eps = 1e-15
     denom = a * e - b * b
+    inv_a = 1.0 / np.maximum(a, eps)
+    inv_e = 1.0 / np.maximum(e, eps)
     # Closest point parameters (Ericson, Real-Time Collision Detection, 5.1.9).
     s = np.where(denom > eps, np.clip((b * f - c * e) / np.maximum(denom, eps), 0.0, 1.0), 0.0)
-    t = (b * s + f) / np.maximum(e, eps)
-    s = np.where(t < 0.0, np.clip(-c / np.maximum(a, eps), 0.0, 1.0), s)
-    s = np.where(t > 1.0, np.clip((b - c) / np.maximum(a, eps), 0.0, 1.0), s)
+    t = (b * s + f) * inv_e
+    s = np.where(t < 0.0, np.clip(-c * inv_a, 0.0, 1.0), s)
+    s = np.where(t > 1.0, np.clip((b - c) * inv_a, 0.0, 1.0), s)
     t = np.clip(t, 0.0, 1.0)
     # Degenerate segments (points): Ericson's a <= eps / e <= eps cases.
     q_point = e <= eps
-    s = np.where(q_point, np.clip(-c / np.maximum(a, eps), 0.0, 1.0), s)
+    s = np.where(q_point, np.clip(-c * inv_a, 0.0, 1.0), s)
     t = np.where(q_point, 0.0, t)
     p_point = a <= eps
     s = np.where(p_point, 0.0, s)
-    t = np.where(p_point, np.where(q_point, 0.0, np.clip(f / np.maximum(e, eps), 0.0, 1.0)), t)
-    closest = (p0 + s[..., None] * d1) - (q0 + t[..., None] * d2)
-    return np.linalg.norm(closest, axis=-1)
+    t = np.where(p_point, np.where(q_point, 0.0, np.clip(f * inv_e, 0.0, 1.0)), t)
+    gap = r + s * d1 - t * d2
+    return np.sqrt(_dot(gap, gap)).reshape(shape)
+
+
+def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of component-major (3, N) arrays -> (N,)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def finger_collisions(joints: np.ndarray, radii: np.ndarray, allowed_overlap: float = 0.002) -> np.ndarray:

@@ -60,6 +60,8 @@ _FINAL_POINTS = np.array(
 _JOINT_INDEX = [0, 12, 20, 27]  # base, PIP, DIP, tip in _FINAL_POINTS
 _NON_TIP_LINKS = slice(1, 18)     # proximal link and first 5/8 of the middle link (not the knuckle)
 _CLEAR_OF_PALM = slice(7, 28)     # from the middle of the proximal link to the pad
+# Coarse sweep steps evaluated at once; fingers that touched leave the sweep between chunks.
+_SWEEP_CHUNK = 6
 
 
 def _link_coefficients(points: np.ndarray) -> np.ndarray:
@@ -294,35 +296,126 @@ def wrist_transforms(
 
 
 class _FingerBasis:
-    """Flexion planes of all fingers in the object frame, component-major for speed."""
+    """Flexion planes of all fingers in the object frame (float32 on the hot path).
+
+    Flattened over (particle, finger) rows, F = P * 5, and component-major, so a subset of
+    fingers (those still closing) is one fancy index.
+    """
 
     def __init__(self, model: GraspModel, origin: np.ndarray, ex: np.ndarray, ey: np.ndarray):
-        self.hand = model.hand
-        # float32 on the hot path: positions of ~0.1 m to ~10 nm, half the memory traffic.
-        self.origin = np.ascontiguousarray(np.moveaxis(origin, -1, 0), dtype=np.float32)  # (3, P, 5)
-        self.ex = np.ascontiguousarray(np.moveaxis(ex, -1, 0), dtype=np.float32)
-        self.ey = np.ascontiguousarray(np.moveaxis(ey, -1, 0), dtype=np.float32)
-        self.lengths = model.hand.link_lengths.astype(np.float32)
+        n = origin.shape[0]
+        # Positions of ~0.1 m to ~10 nm: float32 halves the memory traffic.
+        self.origin = np.ascontiguousarray(origin.reshape(-1, 3).T, dtype=np.float32)  # (3, F)
+        self.ex = np.ascontiguousarray(ex.reshape(-1, 3).T, dtype=np.float32)
+        self.ey = np.ascontiguousarray(ey.reshape(-1, 3).T, dtype=np.float32)
+        self.lengths = np.tile(model.hand.link_lengths.astype(np.float32), (n, 1))  # (F, 3)
+        self.ratio = float(model.hand.coupling_ratio)
 
-    def points(self, distal: np.ndarray, proximal: np.ndarray, coeff: np.ndarray) -> tuple[np.ndarray, ...]:
-        """x, y, z of link points, each (P, 5, ..., K), for flexions (P, 5, ...)."""
-        hand = self.hand
-        extra = distal.ndim - 2
-        phi = np.stack(
-            [proximal, proximal + hand.coupling_ratio * distal,
-             proximal + (hand.coupling_ratio + 1.0) * distal],
-            axis=-1,
-        )
-        lengths = self.lengths.reshape((1, N_FINGERS) + (1,) * extra + (3,))
-        phi = phi.astype(np.float32)
+    def points(
+        self, distal: np.ndarray, proximal: np.ndarray, coeff: np.ndarray, rows: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x, y, z of link points.
+
+        distal, proximal : (F', ...) float, rad -- flexions of the fingers ``rows`` (all F when None)
+        coeff : (3, M) float -- link points as combinations of the three segments
+        -> x, y, z : each (F', ..., M) float32, m, object frame
+        """
+        extra = distal.ndim - 1
+        phi = np.stack([proximal, proximal + self.ratio * distal,
+                        proximal + (self.ratio + 1.0) * distal], axis=-1).astype(np.float32)
+        lengths = self.lengths if rows is None else self.lengths[rows]
+        lengths = lengths.reshape((len(lengths),) + (1,) * extra + (3,))
         coeff = coeff.astype(np.float32)
         u = (lengths * np.cos(phi)) @ coeff
         v = (lengths * np.sin(phi)) @ coeff
-        shape = self.origin.shape[1:] + (1,) * (extra + 1)
-        return tuple(
-            self.origin[c].reshape(shape) + u * self.ex[c].reshape(shape) + v * self.ey[c].reshape(shape)
-            for c in range(3)
-        )
+        shape = (len(lengths),) + (1,) * (extra + 1)
+        out = []
+        for c in range(3):
+            o, ex, ey = self.origin[c], self.ex[c], self.ey[c]
+            if rows is not None:
+                o, ex, ey = o[rows], ex[rows], ey[rows]
+            out.append(o.reshape(shape) + u * ex.reshape(shape) + v * ey.reshape(shape))
+        return out[0], out[1], out[2]
+
+
+def _close_fingers(
+    model: GraspModel, basis: _FingerBasis, distal0: np.ndarray, proximal0: np.ndarray,
+    d_span: np.ndarray, p_span: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Closing parameter of every finger: where it first touches the surface.
+
+    The flexions close linearly from the pre-shape (s = 0) to the joint limits (s = 1).
+    A coarse sweep of s finds the first step whose link spheres touch the object, in
+    chunks: a finger that touched leaves the sweep (most touch in its first half);
+    regula falsi (Illinois) then refines the bracket of the fingers that touched after
+    s = 0, the clearance being smooth along the sweep.
+
+    distal0, proximal0, d_span, p_span : (F,) float, rad
+    -> s : (F,) float in [0, 1] (0 for fingers touching at the pre-shape, 1 for fingers
+       meeting nothing), blocked : (F,) bool (deeper than max_penetration at s = 0)
+    """
+    sdf, settings = model.sdf, model.settings
+
+    def min_clearance(s: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Smallest link clearance (m) of fingers ``rows`` at closing parameters s (F', ...)."""
+        extra = (1,) * (s.ndim - 1)
+        d = distal0[rows].reshape(-1, *extra) + s * d_span[rows].reshape(-1, *extra)
+        p = proximal0[rows].reshape(-1, *extra) + s * p_span[rows].reshape(-1, *extra)
+        return (sdf.distance_xyz(*basis.points(d, p, _SWEEP_COEFF, rows)) - model.sweep_radii).min(axis=-1)
+
+    n_rows = len(distal0)
+    steps = np.linspace(0.0, 1.0, settings.coarse_steps)
+    first = np.full(n_rows, -1)              # first step that touches; -1: none yet
+    c_first = np.zeros(n_rows)               # clearance there
+    c_prev = np.zeros(n_rows)                # clearance one step before (valid when first > 0)
+    blocked = np.zeros(n_rows, dtype=bool)
+    last_clear = np.zeros(n_rows)            # clearance at the last step swept, per finger
+    rows = np.arange(n_rows)
+    for start in range(0, len(steps), _SWEEP_CHUNK):
+        if len(rows) == 0:
+            break
+        chunk = steps[start:start + _SWEEP_CHUNK]
+        clear = min_clearance(np.broadcast_to(chunk, (len(rows), len(chunk))), rows)  # (F', K')
+        if start == 0:
+            blocked[rows] = clear[:, 0] < -settings.max_penetration
+        hit = clear <= 0.0
+        any_hit = hit.any(axis=1)
+        k = np.argmax(hit, axis=1)
+        touched = rows[any_hit]
+        k_hit = k[any_hit]
+        first[touched] = start + k_hit
+        c_first[touched] = clear[any_hit, k_hit]
+        # The step before the first touch: in this chunk, or the last of the previous one.
+        before = np.where(k_hit > 0, clear[any_hit, np.maximum(k_hit - 1, 0)], last_clear[touched])
+        c_prev[touched] = before
+        last_clear[rows] = clear[:, -1]
+        rows = rows[~any_hit]
+
+    any_hit = first >= 0
+    refine = first > 0
+    k_lo = np.maximum(first - 1, 0)
+    lo = np.where(refine, steps[k_lo], np.where(any_hit, 0.0, 1.0))
+    hi = np.where(refine, steps[np.maximum(first, 0)], lo)
+    rows = np.flatnonzero(refine)
+    lo_r, hi_r, c_lo, c_hi = lo[rows], hi[rows], c_prev[rows], c_first[rows]
+    side = np.zeros(len(rows))
+    for _ in range(settings.refine_steps):
+        if len(rows) == 0:
+            break
+        denom = c_lo - c_hi
+        frac = np.clip(c_lo / np.where(np.abs(denom) > 1e-12, denom, 1.0), 0.05, 0.95)
+        mid = lo_r + frac * (hi_r - lo_r)
+        c_mid = min_clearance(mid, rows)
+        free = c_mid > 0.0
+        hit_mid = ~free
+        # Illinois: halve the stale end's value when the same side moves twice.
+        c_hi = np.where(free & (side > 0), 0.5 * c_hi, c_hi)
+        c_lo = np.where(hit_mid & (side < 0), 0.5 * c_lo, c_lo)
+        lo_r, c_lo = np.where(free, mid, lo_r), np.where(free, c_mid, c_lo)
+        hi_r, c_hi = np.where(hit_mid, mid, hi_r), np.where(hit_mid, c_mid, c_hi)
+        side = np.where(free, 1.0, -1.0)
+    lo[rows] = lo_r
+    return lo, blocked
 
 
 def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> DecodedGrasps:
@@ -364,63 +457,38 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
     )
     d_span = hand.upper[0:15:3] - distal0
     p_span = hand.upper[1:15:3] - proximal0
+    distal0_f, proximal0_f = distal0.reshape(-1), proximal0.reshape(-1)
+    d_span_f, p_span_f = d_span.reshape(-1), p_span.reshape(-1)
+    s_f, blocked_f = _close_fingers(model, basis, distal0_f, proximal0_f, d_span_f, p_span_f)
+    s, blocked = s_f.reshape(n, N_FINGERS), blocked_f.reshape(n, N_FINGERS)
 
-    def min_clearance(s: np.ndarray) -> np.ndarray:
-        """Smallest link clearance of each finger at closing parameters s (P, 5, ...)."""
-        extra = (1,) * (s.ndim - 2)
-        d = distal0.reshape(n, N_FINGERS, *extra) + s * d_span.reshape(n, N_FINGERS, *extra)
-        p = proximal0.reshape(n, N_FINGERS, *extra) + s * p_span.reshape(n, N_FINGERS, *extra)
-        return (sdf.distance_xyz(*basis.points(d, p, _SWEEP_COEFF)) - model.sweep_radii).min(axis=-1)
+    def final_points(s_final: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """(F', 28, 3) float32 link points of fingers ``rows`` closed to s_final (F',)."""
+        sel = slice(None) if rows is None else rows
+        d = distal0_f[sel] + s_final * d_span_f[sel]
+        p = proximal0_f[sel] + s_final * p_span_f[sel]
+        return np.stack(basis.points(d, p, _FINAL_COEFF, rows), axis=-1)
 
-    # Coarse sweep of the closing motion.
-    steps = np.linspace(0.0, 1.0, settings.coarse_steps)
-    clear = min_clearance(np.broadcast_to(steps, (n, N_FINGERS, len(steps))))  # (P, 5, K)
-    hit = clear <= 0.0
-    any_hit = hit.any(axis=2)
-    first = np.argmax(hit, axis=2)
-    blocked = clear[..., 0] < -settings.max_penetration
-    # Regula falsi (Illinois) in [s_{k-1}, s_k] on the first crossing: the clearance is
-    # smooth along the sweep. Fingers that touch at s = 0 or meet nothing keep 0 or 1.
-    refine = any_hit & (first > 0)
-    k_lo = np.maximum(first - 1, 0)
-    lo = np.where(refine, steps[k_lo], np.where(any_hit, 0.0, 1.0))
-    hi = np.where(refine, steps[first], lo)
-    c_lo = np.take_along_axis(clear, k_lo[..., None], axis=2)[..., 0]
-    c_hi = np.take_along_axis(clear, first[..., None], axis=2)[..., 0]
-    side = np.zeros_like(lo)
-    for _ in range(settings.refine_steps):
-        denom = np.where(refine, c_lo - c_hi, 1.0)
-        frac = np.clip(c_lo / np.where(np.abs(denom) > 1e-12, denom, 1.0), 0.05, 0.95)
-        mid = lo + frac * (hi - lo)
-        c_mid = min_clearance(np.where(refine, mid, lo))
-        free = refine & (c_mid > 0.0)
-        hit_mid = refine & ~free
-        # Illinois: halve the stale end's value when the same side moves twice.
-        c_hi = np.where(free & (side > 0), 0.5 * c_hi, c_hi)
-        c_lo = np.where(hit_mid & (side < 0), 0.5 * c_lo, c_lo)
-        lo, c_lo = np.where(free, mid, lo), np.where(free, c_mid, c_lo)
-        hi, c_hi = np.where(hit_mid, mid, hi), np.where(hit_mid, c_mid, c_hi)
-        side = np.where(free, 1.0, np.where(hit_mid, -1.0, side))
-    s = lo
+    def clearance_of(points: np.ndarray) -> np.ndarray:
+        return sdf.distance_xyz(points[..., 0], points[..., 1], points[..., 2]) - model.point_radii
 
-    def final_points(s_final: np.ndarray) -> np.ndarray:
-        d = distal0 + s_final * d_span
-        p = proximal0 + s_final * p_span
-        return np.stack(basis.points(d, p, _FINAL_COEFF), axis=-1)  # (P, 5, 28, 3)
-
-    pts = final_points(s)
-    clearance = sdf.distance(pts) - model.point_radii
-    tip_gap = clearance[..., -1]
+    pts = final_points(s_f)                     # (F, 28, 3)
+    clearance = clearance_of(pts)
+    tip_gap = clearance[..., -1].reshape(n, N_FINGERS).copy()  # of the closed pose, before re-opening
     # The sphere that stopped the finger is within the search resolution of the
     # surface; a pad within the tolerance is a fingertip contact.
-    contact = (tip_gap <= tol) & ~blocked & (clearance.min(axis=-1) >= -settings.max_penetration)
+    contact = ((tip_gap <= tol) & ~blocked
+               & (clearance.min(axis=-1).reshape(n, N_FINGERS) >= -settings.max_penetration))
     # Fingers without a fingertip contact take no part in the precision grasp: they stay
     # at their pre-shape (closed to their limits they would fold into the palm or
     # themselves; stopped by a middle link they would not be a precision contact).
     s = np.where(contact, s, 0.0)
-    if not contact.all():
-        pts = final_points(s)
-        clearance = sdf.distance(pts) - model.point_radii
+    reopened = np.flatnonzero((~contact).reshape(-1) & (s_f != 0.0))
+    if len(reopened):
+        pts[reopened] = final_points(np.zeros(len(reopened)), reopened)
+        clearance[reopened] = clearance_of(pts[reopened])
+    pts = pts.reshape(n, N_FINGERS, -1, 3)
+    clearance = clearance.astype(np.float64).reshape(n, N_FINGERS, -1)
     distal = distal0 + s * d_span
     proximal = proximal0 + s * p_span
     penetration = np.maximum(0.0, -clearance.min(axis=-1))

@@ -86,27 +86,41 @@ class SignedDistanceGrid:
         -------
         (...) float, m (negative inside)
         """
+        shape = np.shape(x)
+        dtype = np.float32 if getattr(x, "dtype", None) == np.float32 else np.float64
+        # float32 stays float32 (half the memory traffic); flat 1-d arrays for out= below.
+        x, y, z = (np.asarray(v, dtype=dtype).reshape(-1) for v in (x, y, z))
         n_cells = self.shape[0] - 1, self.shape[1] - 1, self.shape[2] - 1
-        inv = 1.0 / self.spacing
-        out2 = None
-        idx = []
+        real = x.dtype.type
+        inv = real(1.0 / self.spacing)
+        strides = (n_cells[1] * n_cells[2], n_cells[2], 1)
+        # In-place ufuncs, no np.clip: decode calls this ~8 times a batch, and the
+        # per-call overhead of small batches counts as much as the arithmetic.
+        out2 = cell = None
         frac = []
-        for coord, o, n in zip((x, y, z), self.origin, n_cells):
-            g = (coord - coord.dtype.type(o)) * coord.dtype.type(inv)
-            gc = np.clip(g, 0.0, n - 1e-3)  # 1e-3 cell: safe in float32 too
+        for coord, o, n, stride in zip((x, y, z), self.origin, n_cells, strides):
+            g = coord - real(o)
+            g *= inv
+            gc = np.maximum(g, real(0.0))
+            np.minimum(gc, real(n - 1e-3), out=gc)  # 1e-3 cell: safe in float32 too
             i = gc.astype(np.intp)
-            frac.append(gc - i)
-            idx.append(i)
-            d = g - gc
-            out2 = d * d if out2 is None else out2 + d * d
-        cell = (idx[0] * n_cells[1] + idx[1]) * n_cells[2] + idx[2]
+            g -= gc  # grid units outside the box
+            g *= g
+            out2 = g if out2 is None else np.add(out2, g, out=out2)
+            gc -= i
+            frac.append(gc.reshape(-1, 1))
+            if stride != 1:
+                i *= stride
+            cell = i if cell is None else np.add(cell, i, out=cell)
         c = np.take(self._corner_table, cell.reshape(-1), axis=0)
-        fx, fy, fz = (f.reshape(-1, 1) for f in frac)
+        fx, fy, fz = frac
         # Corners are ordered (i, j, k) with k fastest: interpolate z, then y, then x.
         cz = c[:, 0::2] + (c[:, 1::2] - c[:, 0::2]) * fz
         cy = cz[:, 0::2] + (cz[:, 1::2] - cz[:, 0::2]) * fy
-        d = (cy[:, 0:1] + (cy[:, 1:2] - cy[:, 0:1]) * fx).reshape(cell.shape)
-        return d + np.sqrt(out2) * self.spacing
+        d = cy[:, 0] + (cy[:, 1] - cy[:, 0]) * fx[:, 0]
+        np.sqrt(out2, out=out2)
+        out2 *= real(self.spacing)
+        return (d + out2).reshape(shape)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance at points (trilinear interpolation).
