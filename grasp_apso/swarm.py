@@ -104,6 +104,9 @@ class IterationStats:
 class SwarmResult:
     best: np.ndarray
     best_fitness: float
+    #: (P, 19) personal bests and their fitness (P,) at the end (-inf: replaced, not yet evaluated).
+    personal_best: np.ndarray | None = None
+    personal_best_fitness: np.ndarray | None = None
     history: list[IterationStats] = field(default_factory=list)
     iterations_run: int = 0
     cancelled: bool = False
@@ -208,4 +211,5 @@ def run_swarm(
             progress(stats)
 
     result.best, result.best_fitness = gbest, gbest_f
+    result.personal_best, result.personal_best_fitness = pbest, pbest_f
     return result
