@@ -25,7 +25,9 @@ action feedback and markers itself (publishing is thread-safe in rclpy).
 
 Requests
 --------
-Exactly one object source: a non-empty ``mesh``, a ``mesh_uri`` (a path or ``file://``
+Exactly one object source: a non-empty ``mesh``, the same mesh packed in
+``mesh_vertices`` / ``mesh_triangles`` (flat arrays that rclpy converts without a Python
+object per vertex: for large meshes), a ``mesh_uri`` (a path or ``file://``
 URI inside the directory of the ``allowed_mesh_dir`` parameter; relative paths are taken
 from that directory; mesh files are refused while it is empty) or an ``object_name``
 (sphere, cube, barrel, fish). The planning frame is ``object_pose.header.frame_id``;
@@ -52,6 +54,7 @@ import gc
 import hashlib
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -88,7 +91,9 @@ from grasp_apso_interfaces.msg import GraspProgress
 from grasp_apso_interfaces.srv import PlanGrasp
 
 from . import objects
-from .conversions import fill_result, grasp_markers, mesh_to_arrays, pose_stamped_to_matrix, progress_msg
+from .conversions import (
+    fill_result, grasp_markers, mesh_to_arrays, packed_mesh_to_arrays, pose_stamped_to_matrix, progress_msg,
+)
 from .hand import HandModel, load_hand
 from .objects import BUILTIN_OBJECTS, ObjectError
 from .planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan
@@ -171,6 +176,9 @@ _SPECS = {spec.name: spec for spec in PARAMETERS}
 
 #: Inline meshes whose GraspObject is kept (keyed by a hash of the raw arrays).
 _OBJECT_CACHE_SIZE = 8
+# The packed mesh source, as it is named in messages.
+_PACKED = "mesh_vertices/mesh_triangles"
+_SOURCES = f"mesh, {_PACKED}, mesh_uri, object_name"
 
 
 def _complete(future: Future, outcome: Any, executor: Any) -> None:
@@ -192,6 +200,26 @@ def _nothing() -> None:
     """A task that does nothing (its creation wakes the executor)."""
 
 
+def _packed_message(text: str) -> str:
+    """A validation message of :func:`objects.from_arrays` (which says ``mesh: ...``)
+    re-addressed to the packed fields the client filled.
+
+    Vertex problems name ``mesh_vertices``, index problems ``mesh_triangles``, problems of
+    the whole mesh (degenerate, flat) both; ``(packed mesh)`` tells the client which
+    representation was checked.
+    """
+    if not text.startswith("mesh: "):
+        return text
+    rest = text[len("mesh: "):]
+    if re.match(r"(vertex \d|vertices |\d+ vertices )", rest):
+        field = "mesh_vertices"
+    elif re.match(r"(triangle \d|triangles |\d+ triangles )", rest):
+        field = "mesh_triangles"
+    else:
+        field = _PACKED
+    return f"{field} (packed mesh): {rest}"
+
+
 class RequestError(ValueError):
     """A malformed request; the message names the field."""
 
@@ -203,7 +231,7 @@ class _Job:
     request_id: str
     header: Header
     pose: np.ndarray
-    source: str                      # "mesh" | "mesh_uri" | "object_name"
+    source: str                      # "mesh" | _PACKED | "mesh_uri" | "object_name"
     describe: str                    # for log lines
     options: PlanOptions
     seed: int | None
@@ -388,18 +416,19 @@ class GraspPlannerNode(Node):
         """
         values = self._parameter_values()
         has_mesh = len(req.mesh.vertices) > 0 or len(req.mesh.triangles) > 0
+        has_packed = len(req.mesh_vertices) > 0 or len(req.mesh_triangles) > 0
         uri = req.mesh_uri.strip()
         name = req.object_name.strip()
         given = [field for field, present in
-                 (("mesh", has_mesh), ("mesh_uri", bool(uri)), ("object_name", bool(name)))
+                 (("mesh", has_mesh), (_PACKED, has_packed), ("mesh_uri", bool(uri)),
+                  ("object_name", bool(name)))
                  if present]
         if not given:
             raise RequestError(
-                "no object: mesh is empty and mesh_uri and object_name are not set "
-                "(give exactly one of mesh, mesh_uri, object_name)")
+                "no object: mesh is empty and mesh_vertices/mesh_triangles, mesh_uri and object_name "
+                f"are not set (give exactly one of {_SOURCES})")
         if len(given) > 1:
-            raise RequestError(
-                f"give exactly one of mesh, mesh_uri, object_name (got {' and '.join(given)})")
+            raise RequestError(f"give exactly one of {_SOURCES} (got {' and '.join(given)})")
 
         frame, pose = pose_stamped_to_matrix(req.object_pose, "object_pose")
         header = Header(stamp=req.object_pose.header.stamp, frame_id=frame)
@@ -443,7 +472,23 @@ class GraspPlannerNode(Node):
             max_bytes=int(values["max_mesh_bytes"]),
             goal_handle=goal_handle,
         )
-        if has_mesh:
+        if has_packed:
+            if not len(req.mesh_vertices) or not len(req.mesh_triangles):
+                missing = "mesh_triangles" if len(req.mesh_vertices) else "mesh_vertices"
+                raise ObjectError(f"{missing}: empty, but the packed mesh has "
+                                  f"{'vertices' if missing == 'mesh_triangles' else 'triangles'} "
+                                  "(give both mesh_vertices and mesh_triangles)")
+            try:
+                job.vertices, job.triangles = packed_mesh_to_arrays(req.mesh_vertices, req.mesh_triangles)
+            except ValueError as exc:
+                raise ObjectError(str(exc)) from None
+            n_tri = len(job.triangles)
+            if n_tri > job.max_triangles:
+                raise ObjectError(
+                    f"mesh_triangles: {n_tri} triangles exceeds the limit of {job.max_triangles} "
+                    f"(parameter max_mesh_triangles)")
+            job.describe = f"packed mesh ({len(job.vertices)} vertices, {n_tri} triangles)"
+        elif has_mesh:
             n_tri = len(req.mesh.triangles)
             if n_tri > job.max_triangles:
                 raise ObjectError(
@@ -589,7 +634,12 @@ class GraspPlannerNode(Node):
             if obj is not None:
                 self._objects.move_to_end(key)
                 return obj
-        obj = objects.from_arrays(job.vertices, job.triangles, name="mesh", max_triangles=job.max_triangles)
+        try:
+            obj = objects.from_arrays(job.vertices, job.triangles, name="mesh", max_triangles=job.max_triangles)
+        except objects.ObjectError as exc:
+            if job.source != _PACKED:
+                raise
+            raise objects.ObjectError(_packed_message(str(exc))) from None
         with self._objects_lock:
             self._objects[key] = obj
             while len(self._objects) > _OBJECT_CACHE_SIZE:

@@ -37,6 +37,40 @@ def test_mesh_roundtrip_through_serialisation():
     assert np.array_equal(triangles, sphere.mesh.faces)
 
 
+def test_packed_mesh_roundtrip_through_a_serialised_request():
+    fish = objects.builtin('fish')
+    req = PlanGrasp.Request()
+    req.mesh_vertices, req.mesh_triangles = conversions.arrays_to_packed(fish.mesh.vertices, fish.mesh.faces)
+    back = deserialize_message(serialize_message(req), PlanGrasp.Request)
+    vertices, triangles = conversions.packed_mesh_to_arrays(back.mesh_vertices, back.mesh_triangles)
+    assert vertices.dtype == np.float64 and triangles.dtype == np.int64
+    assert np.array_equal(vertices, fish.mesh.vertices)
+    assert np.array_equal(triangles, fish.mesh.faces)
+    assert len(back.mesh.vertices) == 0  # the shape_msgs/Mesh field stays empty
+
+
+@pytest.mark.parametrize('vertices, triangles, field', [
+    ([0.0] * 8, [0, 1, 2], 'mesh_vertices'),
+    ([0.0] * 9, [0, 1, 2, 0], 'mesh_triangles'),
+])
+def test_packed_lengths_must_be_triples(vertices, triangles, field):
+    with pytest.raises(ValueError, match=field):
+        conversions.packed_mesh_to_arrays(vertices, triangles)
+
+
+def test_arrays_to_packed_refuses_bad_shapes_and_indices():
+    with pytest.raises(ValueError, match='vertices'):
+        conversions.arrays_to_packed(np.zeros((4, 2)), np.zeros((1, 3), int))
+    with pytest.raises(ValueError, match='triangles'):
+        conversions.arrays_to_packed(np.zeros((4, 3)), np.array([[0, 1, -1]]))
+    with pytest.raises(ValueError, match='triangles'):
+        conversions.arrays_to_packed(np.zeros((4, 3)), np.array([[0, 1, 2**32]]))
+    with pytest.raises(ValueError, match='whole numbers'):
+        conversions.arrays_to_packed(np.zeros((4, 3)), np.array([[0, 1, 2.5]]))
+    # Floats that hold whole numbers are indices too.
+    assert list(conversions.arrays_to_packed(np.zeros((4, 3)), np.array([[0.0, 1.0, 3.0]]))[1]) == [0, 1, 3]
+
+
 def test_empty_mesh_gives_empty_arrays():
     vertices, triangles = conversions.mesh_to_arrays(PlanGrasp.Request().mesh)
     assert vertices.shape == (0, 3) and triangles.shape == (0, 3)

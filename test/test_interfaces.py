@@ -22,6 +22,8 @@ from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 
 REQUEST_FIELDS = {
     'mesh': 'shape_msgs/Mesh',
+    'mesh_vertices': 'sequence<double>',
+    'mesh_triangles': 'sequence<uint32>',
     'mesh_uri': 'string',
     'object_name': 'string',
     'object_pose': 'geometry_msgs/PoseStamped',

@@ -29,7 +29,7 @@ from node_helpers import (  # noqa: E402
     DISCOVERY_TIMEOUT, ProgressCounter, SpinningNode, identity_pose, table_pose, wait_for, wait_future)
 
 from grasp_apso import objects  # noqa: E402
-from grasp_apso.conversions import arrays_to_mesh  # noqa: E402
+from grasp_apso.conversions import arrays_to_mesh, arrays_to_packed  # noqa: E402
 from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand  # noqa: E402
 from grasp_apso.node import PARAMETER_NAMES, PARAMETERS, GraspPlannerNode  # noqa: E402
 
@@ -78,11 +78,14 @@ class Harness:
         assert all(r.successful for r in results), [r.reason for r in results]
 
 
-def sphere_request(pose=None, **fields):
-    """A request with the built-in sphere sent inline as shape_msgs/Mesh."""
+def sphere_request(pose=None, packed=False, **fields):
+    """A request with the built-in sphere sent inline, as shape_msgs/Mesh or packed."""
     sphere = objects.builtin('sphere')
     req = PlanGrasp.Request()
-    req.mesh = arrays_to_mesh(sphere.mesh.vertices, sphere.mesh.faces)
+    if packed:
+        req.mesh_vertices, req.mesh_triangles = arrays_to_packed(sphere.mesh.vertices, sphere.mesh.faces)
+    else:
+        req.mesh = arrays_to_mesh(sphere.mesh.vertices, sphere.mesh.faces)
     req.object_pose = pose if pose is not None else identity_pose()
     for key, value in {**SMALL, **fields}.items():
         setattr(req, key, value)
@@ -157,9 +160,10 @@ def _distance_to_surface(mesh, points):
 
 # --- a real mesh, a non-identity pose --------------------------------------------------------
 
-def test_mesh_request_in_table_frame(ros):
+@pytest.mark.parametrize('packed', [False, True], ids=['shape_msgs_mesh', 'packed_mesh'])
+def test_mesh_request_in_table_frame(ros, packed):
     pose, matrix = table_pose()
-    res = ros.call(sphere_request(pose))
+    res = ros.call(sphere_request(pose, packed=packed))
     assert res.success, res.message
     assert res.request_id
 
@@ -296,6 +300,23 @@ def _nan_wrist(req, _dir):
     req.wrist_position.x = float('nan')
 
 
+def _with_packed(vertices, triangles):
+    """Packed fields given as flat lists (lengths need not be multiples of 3)."""
+    def edit(req, _dir):
+        req.mesh_vertices = [float(v) for v in np.ravel(vertices)]
+        req.mesh_triangles = [int(i) for i in np.ravel(triangles)]
+    return edit
+
+
+_BOX = objects.trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+_BOX_V, _BOX_T = _BOX.vertices, _BOX.faces
+
+
+def _packed_and_mesh(req, d):
+    _with_packed(TETRA_V, TETRA_T)(req, d)
+    req.mesh = _mesh(TETRA_V, TETRA_T)
+
+
 def _both_sources(req, _dir):
     req.mesh = _mesh(TETRA_V, TETRA_T)
     req.object_name = 'cube'
@@ -340,6 +361,21 @@ BAD_INPUT = [
     ('negative_seed', _with(object_name='sphere', seed=-5), ['seed'], {}),
     ('nan_wrist_position', lambda req, d: (_with(object_name='sphere')(req, d), _nan_wrist(req, d)),
      ['wrist_position', 'not finite'], {}),
+    ('packed_vertices_not_triples', _with_packed(np.ravel(TETRA_V)[:-1], TETRA_T),
+     ['mesh_vertices', 'multiple of 3'], {}),
+    ('packed_triangles_not_triples', _with_packed(TETRA_V, np.ravel(TETRA_T)[:-2]),
+     ['mesh_triangles', 'multiple of 3'], {}),
+    ('packed_vertices_without_triangles', _with_packed(TETRA_V, []), ['mesh_triangles', 'empty'], {}),
+    ('packed_triangles_without_vertices', _with_packed([], TETRA_T), ['mesh_vertices', 'empty'], {}),
+    ('packed_and_mesh', _packed_and_mesh, ['exactly one', 'mesh and mesh_vertices/mesh_triangles'], {}),
+    ('packed_nan_vertex', _with_packed([(float('nan'), 0, 0)] + TETRA_V[1:], TETRA_T),
+     ['mesh_vertices (packed mesh)', 'vertex 0 is NaN'], {}),
+    ('packed_index_out_of_range', _with_packed(TETRA_V, TETRA_T[:3] + [(1, 2, 99)]),
+     ['mesh_triangles (packed mesh)', 'index 99 out of range'], {}),
+    ('packed_flat', _with_packed([(0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0), (0, 0.05, 0)], [(0, 1, 2), (0, 2, 3)]),
+     ['mesh_vertices/mesh_triangles (packed mesh)', 'flat'], {}),
+    ('packed_over_size_limit', _with_packed(_BOX_V, _BOX_T), ['mesh_triangles', '12 triangles', 'max_mesh_triangles'],
+     {'max_mesh_triangles': 4}),
     ('object_too_large', _box((0.5, 0.4, 0.3)), ['too large'], {}),
     ('object_too_small', _box((0.003, 0.003, 0.003)), ['too small'], {}),
 ]
@@ -513,6 +549,23 @@ def _goal(name='sphere', **fields):
     for key, value in {**SMALL, **fields}.items():
         setattr(goal, key, value)
     return goal
+
+
+def test_action_goal_with_a_packed_mesh(ros, action_client):
+    """The action goal goes through the same parser: a packed mesh plans, a bad one aborts."""
+    sphere = objects.builtin('sphere')
+    goal = _goal('', iterations=3)
+    goal.mesh_vertices, goal.mesh_triangles = arrays_to_packed(sphere.mesh.vertices, sphere.mesh.faces)
+    goal_handle = ros.wait(action_client.send_goal_async(goal), 10.0)
+    wrapped = ros.wait(goal_handle.get_result_async(), CALL_TIMEOUT)
+    assert wrapped.status == GoalStatus.STATUS_SUCCEEDED, wrapped.result.message
+    assert len(wrapped.result.configuration.position) == 18
+
+    goal.mesh_triangles = goal.mesh_triangles[:-1]
+    goal_handle = ros.wait(action_client.send_goal_async(goal), 10.0)
+    wrapped = ros.wait(goal_handle.get_result_async(), CALL_TIMEOUT)
+    assert wrapped.status == GoalStatus.STATUS_ABORTED
+    assert 'mesh_triangles' in wrapped.result.message and 'multiple of 3' in wrapped.result.message
 
 
 def test_action_goal_with_feedback(ros, action_client):
