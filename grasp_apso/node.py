@@ -148,6 +148,10 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
                   0.0, 5.0, lo_open=True),
     ParameterSpec("friction_edges", _DEFAULTS.friction_edges,
                   "Edges of the linearised friction cones (epsilon quality).", 3, 64),
+    ParameterSpec("closure_candidates", _DEFAULTS.closure_candidates,
+                  "When the global best is not force closure, how many of the best distinct "
+                  "personal bests are checked for a force-closure grasp (1 = the global best only).",
+                  1, 100),
     ParameterSpec("seed", -1,
                   "Random seed used when a request's seed is -1; -1 = a fresh random seed "
                   "per request.", -1, _INT64_MAX),
@@ -393,6 +397,7 @@ class GraspPlannerNode(Node):
             stall_iterations=int(values["stall_iterations"]),
             contact_tolerance=float(values["contact_tolerance"]),
             friction=float(values["friction"]), friction_edges=int(values["friction_edges"]),
+            closure_candidates=int(values["closure_candidates"]),
         )
         settings.update(override)
         settings["neighborhood_size"] = max(1, min(settings["neighborhood_size"], settings["particles"]))

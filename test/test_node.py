@@ -464,6 +464,7 @@ def test_parameters_declared_with_descriptors(ros):
     ('plan_timeout', -2.0, 'plan_timeout'),
     ('c1', 'fast', 'type'),  # wrong type: rclpy's own check
     ('inertia', 1.5, 'inertia'),
+    ('closure_candidates', 0, 'closure_candidates'),
 ])
 def test_bad_parameter_values_are_rejected(ros, name, value, word):
     before = ros.node.get_parameter(name).value
