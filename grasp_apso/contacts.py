@@ -329,13 +329,11 @@ class _FingerBasis:
         u = (lengths * np.cos(phi)) @ coeff
         v = (lengths * np.sin(phi)) @ coeff
         shape = (len(lengths),) + (1,) * (extra + 1)
-        out = []
-        for c in range(3):
-            o, ex, ey = self.origin[c], self.ex[c], self.ey[c]
-            if rows is not None:
-                o, ex, ey = o[rows], ex[rows], ey[rows]
-            out.append(o.reshape(shape) + u * ex.reshape(shape) + v * ey.reshape(shape))
-        return out[0], out[1], out[2]
+        origin, ex, ey = ((self.origin, self.ex, self.ey) if rows is None
+                          else (self.origin[:, rows], self.ex[:, rows], self.ey[:, rows]))
+        x, y, z = (origin[c].reshape(shape) + u * ex[c].reshape(shape) + v * ey[c].reshape(shape)
+                   for c in range(3))
+        return x, y, z
 
 
 def _close_fingers(

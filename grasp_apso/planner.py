@@ -297,17 +297,22 @@ def _closure_runner_up(model, problem, swarm, best: np.ndarray, options: PlanOpt
     x = np.stack(candidates)
     decoded = problem.decode(x)
     legal = decoded.legal(model.settings.max_penetration)
-    com = np.asarray(model.obj.center_of_mass, dtype=float)
     for i in np.flatnonzero(legal & (decoded.n_contacts >= 2)):
         contact = decoded.contact[i]
-        _, closure = epsilon_quality(
-            decoded.contact_points[i][contact], decoded.contact_normals[i][contact], com,
-            mu=options.friction, edges=options.friction_edges,
-            torque_scale=float(model.obj.characteristic_radius),
-        )
+        _, closure = _epsilon(model, options, decoded.contact_points[i][contact],
+                              decoded.contact_normals[i][contact])
         if closure:
             return x[i]
     return None
+
+
+def _epsilon(model, options: PlanOptions, points: np.ndarray, normals: np.ndarray) -> tuple[float, bool]:
+    """Ferrari-Canny epsilon and force closure of contacts (k, 3) on the model's object."""
+    obj = model.obj
+    return epsilon_quality(
+        points, normals, np.asarray(obj.center_of_mass, dtype=float), mu=options.friction,
+        edges=options.friction_edges, torque_scale=float(obj.characteristic_radius),
+    )
 
 
 def _runner_ups(swarm, best: np.ndarray, k: int) -> list[np.ndarray]:
@@ -334,12 +339,8 @@ def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> 
     contact = decoded.contact[0]
     points = decoded.contact_points[0][contact]
     normals = decoded.contact_normals[0][contact]
-    com = np.asarray(obj.center_of_mass, dtype=float)
     if contact.sum() >= 2:
-        eps, closure = epsilon_quality(
-            points, normals, com, mu=options.friction, edges=options.friction_edges,
-            torque_scale=float(obj.characteristic_radius),
-        )
+        eps, closure = _epsilon(model, options, points, normals)
     else:
         eps, closure = 0.0, False
     hand = model.hand
