@@ -1,7 +1,8 @@
 """Collisions between fingers, and an independent python-fcl check of a grasp.
 
 The optimiser's hot path uses :func:`finger_collisions`, a batched capsule-capsule test
-in numpy (each link is a capsule: a segment with a radius). :func:`verify_with_fcl`
+(each link is a capsule: a segment with a radius; compiled loops in
+:mod:`grasp_apso.kernels`). :func:`verify_with_fcl`
 checks one final grasp with python-fcl against the real mesh BVH: it is the
 "verification test" of the paper done with an independent geometry engine, used on the
 returned grasp and in tests to cross-check the grid-based decoding.
@@ -15,6 +16,8 @@ from itertools import combinations
 import fcl
 import numpy as np
 import trimesh
+
+from . import kernels
 
 FINGER_PAIRS: tuple[tuple[int, int], ...] = tuple(combinations(range(5), 2))
 
@@ -32,40 +35,10 @@ def segment_distances(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.nda
     """
     p0, p1, q0, q1 = np.broadcast_arrays(p0, p1, q0, q1)
     shape = p0.shape[:-1]
-    # Component-major and contiguous: each dot product is three multiply-adds over all pairs.
-    p0, p1, q0, q1 = (np.ascontiguousarray(np.moveaxis(v, -1, 0)).reshape(3, -1) for v in (p0, p1, q0, q1))
-    d1 = p1 - p0
-    d2 = q1 - q0
-    r = p0 - q0
-    a = _dot(d1, d1)
-    e = _dot(d2, d2)
-    f = _dot(d2, r)
-    c = _dot(d1, r)
-    b = _dot(d1, d2)
-    eps = 1e-15
-    denom = a * e - b * b
-    inv_a = 1.0 / np.maximum(a, eps)
-    inv_e = 1.0 / np.maximum(e, eps)
-    # Closest point parameters (Ericson, Real-Time Collision Detection, 5.1.9).
-    s = np.where(denom > eps, np.clip((b * f - c * e) / np.maximum(denom, eps), 0.0, 1.0), 0.0)
-    t = (b * s + f) * inv_e
-    s = np.where(t < 0.0, np.clip(-c * inv_a, 0.0, 1.0), s)
-    s = np.where(t > 1.0, np.clip((b - c) * inv_a, 0.0, 1.0), s)
-    t = np.clip(t, 0.0, 1.0)
-    # Degenerate segments (points): Ericson's a <= eps / e <= eps cases.
-    q_point = e <= eps
-    s = np.where(q_point, np.clip(-c * inv_a, 0.0, 1.0), s)
-    t = np.where(q_point, 0.0, t)
-    p_point = a <= eps
-    s = np.where(p_point, 0.0, s)
-    t = np.where(p_point, np.where(q_point, 0.0, np.clip(f * inv_e, 0.0, 1.0)), t)
-    gap = r + s * d1 - t * d2
-    return np.sqrt(_dot(gap, gap)).reshape(shape)
-
-
-def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of component-major (3, N) arrays -> (N,)."""
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+    flat = [np.ascontiguousarray(v, dtype=np.float64).reshape(-1, 3) for v in (p0, p1, q0, q1)]
+    out = np.empty(len(flat[0]))
+    kernels.segment_distances(*flat, out)
+    return out.reshape(shape)
 
 
 def finger_collisions(joints: np.ndarray, radii: np.ndarray, allowed_overlap: float = 0.002) -> np.ndarray:
@@ -83,24 +56,15 @@ def finger_collisions(joints: np.ndarray, radii: np.ndarray, allowed_overlap: fl
     Returns
     -------
     (P, 5) bool
-        True for each finger in at least one colliding pair, or folded into itself (its
-        distal link against its proximal link).
+        True for each finger in at least one colliding pair (any of its links against
+        any link of another finger), or folded into itself (its distal link against its
+        proximal link).
     """
-    a_idx = np.array([p[0] for p in FINGER_PAIRS])
-    b_idx = np.array([p[1] for p in FINGER_PAIRS])
-    start, end = joints[:, :, :3], joints[:, :, 1:]  # (P, 5, 3 links, 3)
-    # All link pairs of all finger pairs: (P, 10, 3, 3).
-    dist = segment_distances(
-        start[:, a_idx, :, None], end[:, a_idx, :, None], start[:, b_idx, None, :], end[:, b_idx, None, :]
-    )
-    limit = radii[:, None] + radii[None, :] - allowed_overlap
-    hit = (dist < limit).any(axis=(2, 3))  # (P, 10)
-    # Within a finger: the distal link against the proximal one (a finger folded into itself).
-    folded = segment_distances(joints[:, :, 0], joints[:, :, 1], joints[:, :, 2], joints[:, :, 3])
-    out = folded < radii[0] + radii[2] - allowed_overlap
-    for k, (i, j) in enumerate(FINGER_PAIRS):
-        out[:, i] |= hit[:, k]
-        out[:, j] |= hit[:, k]
+    joints = np.ascontiguousarray(joints, dtype=np.float64)
+    if joints.ndim != 4 or joints.shape[2:] != (4, 3):
+        raise ValueError(f"joints: expected (P, F, 4, 3), got {joints.shape}")
+    out = np.empty(joints.shape[:2], dtype=bool)
+    kernels.finger_collisions(joints, np.ascontiguousarray(radii, dtype=np.float64), float(allowed_overlap), out)
     return out
 
 
@@ -155,16 +119,6 @@ def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> fcl.CollisionObje
 
 def _collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
     return fcl.collide(a, b, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
-
-
-def palm_penetration(points: np.ndarray, center: np.ndarray, half_extents: np.ndarray) -> np.ndarray:
-    """Depth of points inside the palm box (palm frame), 0 outside.
-
-    points : (..., 3) float, m -> (...,) float, m
-    """
-    q = np.abs(points - center) - half_extents
-    inside = np.minimum(q.max(axis=-1), 0.0)  # negative inside: minus the depth
-    return np.where(np.all(q < 0.0, axis=-1), -inside, 0.0)
 
 
 def verify_with_fcl(

@@ -30,11 +30,12 @@ the palm face. A caller may instead fix the wrist position.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .collision import finger_collisions, palm_penetration
+from . import kernels
+from .collision import finger_collisions
 from .hand import N_FINGERS, HandModel, wrist_rotation
 from .sdf import SignedDistanceGrid, cached_sdf_grid
 
@@ -60,8 +61,6 @@ _FINAL_POINTS = np.array(
 _JOINT_INDEX = [0, 12, 20, 27]  # base, PIP, DIP, tip in _FINAL_POINTS
 _NON_TIP_LINKS = slice(1, 18)     # proximal link and first 5/8 of the middle link (not the knuckle)
 _CLEAR_OF_PALM = slice(7, 28)     # from the middle of the proximal link to the pad
-# Coarse sweep steps evaluated at once; fingers that touched leave the sweep between chunks.
-_SWEEP_CHUNK = 6
 
 
 def _link_coefficients(points: np.ndarray) -> np.ndarray:
@@ -155,6 +154,12 @@ class GraspModel:
     point_radii: np.ndarray = field(repr=False)
     sweep_radii: np.ndarray = field(repr=False)
     support_points: np.ndarray = field(repr=False)
+    #: Hand data as the compiled kernels read it (float64, C-contiguous): link lengths
+    #: (5, 3) m, capsule radii of the proximal, middle and distal links (3,) m, palm box.
+    link_lengths: np.ndarray = field(repr=False)
+    capsule_radii: np.ndarray = field(repr=False)
+    palm_center: np.ndarray = field(repr=False)
+    palm_half_extents: np.ndarray = field(repr=False)
 
     @property
     def dims(self) -> int:
@@ -179,11 +184,18 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     final_radii = np.array([hand.link_radii[int(k)] for k, _ in _FINAL_POINTS])
     sweep_radii = np.array([hand.link_radii[int(k)] for k, _ in _SWEEP_POINTS])
     final_radii[-1] = sweep_radii[-1] = hand.pad_radius
-    for arr in (lower, upper, final_radii, sweep_radii):
+    link_lengths, capsule_radii, palm_center, palm_half = (
+        np.array(v, dtype=np.float64, order="C")
+        for v in (hand.link_lengths, [*hand.link_radii[:2], hand.pad_radius], hand.palm_center,
+                  hand.palm_half_extents)
+    )
+    for arr in (lower, upper, final_radii, sweep_radii, link_lengths, capsule_radii, palm_center, palm_half):
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
         point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
+        link_lengths=link_lengths, capsule_radii=capsule_radii, palm_center=palm_center,
+        palm_half_extents=palm_half,
     )
 
 
@@ -197,7 +209,8 @@ def _support_points(obj, n_directions: int = 2000) -> np.ndarray:
         polar = np.arccos(1.0 - 2.0 * k / n_directions)
         azimuth = np.pi * (1.0 + 5.0**0.5) * k
         dirs = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], 1)
-        hull = hull[np.unique(np.argmax(hull @ dirs.T, axis=0))]
+        # (directions, vertices): the arg-max runs along contiguous rows (10x faster).
+        hull = hull[np.unique(np.argmax(dirs @ hull.T, axis=1))]
     hull = np.ascontiguousarray(hull)
     hull.flags.writeable = False
     return hull
@@ -233,6 +246,10 @@ class DecodedGrasps:
         contact; illegal unless the settings allow link contacts).
     palm_penetration : (P,) float, m
         Deepest penetration of the palm face into the object (fixed wrist only).
+    palm_depth : (P, 5) float, m
+        Deepest point of each finger, from the middle of its proximal link to the pad,
+        inside the palm box (0 when none); deeper than the settings' ``palm_overlap``
+        counts as a finger collision.
     """
 
     closed: np.ndarray
@@ -247,6 +264,7 @@ class DecodedGrasps:
     finger_collision: np.ndarray
     palm_penetration: np.ndarray
     link_contact: np.ndarray
+    palm_depth: np.ndarray
 
     @property
     def n_contacts(self) -> np.ndarray:
@@ -260,6 +278,10 @@ class DecodedGrasps:
     def legal(self, max_penetration: float) -> np.ndarray:
         """(P,) bool: no illegal finger and no palm penetration."""
         return ~self.finger_illegal(max_penetration).any(axis=1) & (self.palm_penetration <= max_penetration)
+
+    def take(self, index: np.ndarray) -> "DecodedGrasps":
+        """The particles ``index`` (an index or boolean mask over P) of the batch."""
+        return DecodedGrasps(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
 
 def wrist_transforms(
@@ -295,129 +317,17 @@ def wrist_transforms(
     return tf
 
 
-class _FingerBasis:
-    """Flexion planes of all fingers in the object frame (float32 on the hot path).
-
-    Flattened over (particle, finger) rows, F = P * 5, and component-major, so a subset of
-    fingers (those still closing) is one fancy index.
-    """
-
-    def __init__(self, model: GraspModel, origin: np.ndarray, ex: np.ndarray, ey: np.ndarray):
-        n = origin.shape[0]
-        # Positions of ~0.1 m to ~10 nm: float32 halves the memory traffic.
-        self.origin = np.ascontiguousarray(origin.reshape(-1, 3).T, dtype=np.float32)  # (3, F)
-        self.ex = np.ascontiguousarray(ex.reshape(-1, 3).T, dtype=np.float32)
-        self.ey = np.ascontiguousarray(ey.reshape(-1, 3).T, dtype=np.float32)
-        self.lengths = np.tile(model.hand.link_lengths.astype(np.float32), (n, 1))  # (F, 3)
-        self.ratio = float(model.hand.coupling_ratio)
-
-    def points(
-        self, distal: np.ndarray, proximal: np.ndarray, coeff: np.ndarray, rows: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """x, y, z of link points.
-
-        distal, proximal : (F', ...) float, rad -- flexions of the fingers ``rows`` (all F when None)
-        coeff : (3, M) float -- link points as combinations of the three segments
-        -> x, y, z : each (F', ..., M) float32, m, object frame
-        """
-        extra = distal.ndim - 1
-        phi = np.stack([proximal, proximal + self.ratio * distal,
-                        proximal + (self.ratio + 1.0) * distal], axis=-1).astype(np.float32)
-        lengths = self.lengths if rows is None else self.lengths[rows]
-        lengths = lengths.reshape((len(lengths),) + (1,) * extra + (3,))
-        coeff = coeff.astype(np.float32)
-        u = (lengths * np.cos(phi)) @ coeff
-        v = (lengths * np.sin(phi)) @ coeff
-        shape = (len(lengths),) + (1,) * (extra + 1)
-        origin, ex, ey = ((self.origin, self.ex, self.ey) if rows is None
-                          else (self.origin[:, rows], self.ex[:, rows], self.ey[:, rows]))
-        x, y, z = (origin[c].reshape(shape) + u * ex[c].reshape(shape) + v * ey[c].reshape(shape)
-                   for c in range(3))
-        return x, y, z
-
-
-def _close_fingers(
-    model: GraspModel, basis: _FingerBasis, distal0: np.ndarray, proximal0: np.ndarray,
-    d_span: np.ndarray, p_span: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Closing parameter of every finger: where it first touches the surface.
-
-    The flexions close linearly from the pre-shape (s = 0) to the joint limits (s = 1).
-    A coarse sweep of s finds the first step whose link spheres touch the object, in
-    chunks: a finger that touched leaves the sweep (most touch in its first half);
-    regula falsi (Illinois) then refines the bracket of the fingers that touched after
-    s = 0, the clearance being smooth along the sweep.
-
-    distal0, proximal0, d_span, p_span : (F,) float, rad
-    -> s : (F,) float in [0, 1] (0 for fingers touching at the pre-shape, 1 for fingers
-       meeting nothing), blocked : (F,) bool (deeper than max_penetration at s = 0)
-    """
-    sdf, settings = model.sdf, model.settings
-
-    def min_clearance(s: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Smallest link clearance (m) of fingers ``rows`` at closing parameters s (F', ...)."""
-        extra = (1,) * (s.ndim - 1)
-        d = distal0[rows].reshape(-1, *extra) + s * d_span[rows].reshape(-1, *extra)
-        p = proximal0[rows].reshape(-1, *extra) + s * p_span[rows].reshape(-1, *extra)
-        return (sdf.distance_xyz(*basis.points(d, p, _SWEEP_COEFF, rows)) - model.sweep_radii).min(axis=-1)
-
-    n_rows = len(distal0)
-    steps = np.linspace(0.0, 1.0, settings.coarse_steps)
-    first = np.full(n_rows, -1)              # first step that touches; -1: none yet
-    c_first = np.zeros(n_rows)               # clearance there
-    c_prev = np.zeros(n_rows)                # clearance one step before (valid when first > 0)
-    blocked = np.zeros(n_rows, dtype=bool)
-    last_clear = np.zeros(n_rows)            # clearance at the last step swept, per finger
-    rows = np.arange(n_rows)
-    for start in range(0, len(steps), _SWEEP_CHUNK):
-        if len(rows) == 0:
-            break
-        chunk = steps[start:start + _SWEEP_CHUNK]
-        clear = min_clearance(np.broadcast_to(chunk, (len(rows), len(chunk))), rows)  # (F', K')
-        if start == 0:
-            blocked[rows] = clear[:, 0] < -settings.max_penetration
-        hit = clear <= 0.0
-        any_hit = hit.any(axis=1)
-        k = np.argmax(hit, axis=1)
-        touched = rows[any_hit]
-        k_hit = k[any_hit]
-        first[touched] = start + k_hit
-        c_first[touched] = clear[any_hit, k_hit]
-        # The step before the first touch: in this chunk, or the last of the previous one.
-        before = np.where(k_hit > 0, clear[any_hit, np.maximum(k_hit - 1, 0)], last_clear[touched])
-        c_prev[touched] = before
-        last_clear[rows] = clear[:, -1]
-        rows = rows[~any_hit]
-
-    any_hit = first >= 0
-    refine = first > 0
-    k_lo = np.maximum(first - 1, 0)
-    lo = np.where(refine, steps[k_lo], np.where(any_hit, 0.0, 1.0))
-    hi = np.where(refine, steps[np.maximum(first, 0)], lo)
-    rows = np.flatnonzero(refine)
-    lo_r, hi_r, c_lo, c_hi = lo[rows], hi[rows], c_prev[rows], c_first[rows]
-    side = np.zeros(len(rows))
-    for _ in range(settings.refine_steps):
-        if len(rows) == 0:
-            break
-        denom = c_lo - c_hi
-        frac = np.clip(c_lo / np.where(np.abs(denom) > 1e-12, denom, 1.0), 0.05, 0.95)
-        mid = lo_r + frac * (hi_r - lo_r)
-        c_mid = min_clearance(mid, rows)
-        free = c_mid > 0.0
-        hit_mid = ~free
-        # Illinois: halve the stale end's value when the same side moves twice.
-        c_hi = np.where(free & (side > 0), 0.5 * c_hi, c_hi)
-        c_lo = np.where(hit_mid & (side < 0), 0.5 * c_lo, c_lo)
-        lo_r, c_lo = np.where(free, mid, lo_r), np.where(free, c_mid, c_lo)
-        hi_r, c_hi = np.where(hit_mid, mid, hi_r), np.where(hit_mid, c_mid, c_hi)
-        side = np.where(free, 1.0, -1.0)
-    lo[rows] = lo_r
-    return lo, blocked
-
-
-def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> DecodedGrasps:
+def decode(
+    model: GraspModel,
+    x: np.ndarray,
+    wrist_position: np.ndarray | None = None,
+    reuse: DecodedGrasps | None = None,
+    changed: np.ndarray | None = None,
+) -> DecodedGrasps:
     """Decode particles into closed grasps (vectorised over particles and fingers).
+
+    The wrist and the flexion planes are placed with numpy; closing the fingers and
+    checking their closed pose run in compiled loops (:func:`grasp_apso.kernels.close_fingers`).
 
     Parameters
     ----------
@@ -426,6 +336,11 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
         Particles (pre-shapes, wrist angles, standoff offset); clamped to the bounds.
     wrist_position : (3,) float, m, optional
         Fixed wrist position in the object frame (operator path).
+    reuse, changed : DecodedGrasps of P particles and (P, 5) bool, optional
+        Re-decode only the ``changed`` fingers (GRG's verification test regenerates single
+        fingers): ``reuse`` is the decoding of the same particles in which only those
+        fingers had other values; every finger of ``reuse`` is kept except these, and the
+        collisions between fingers are checked again. The result equals a full decode.
 
     Returns
     -------
@@ -440,84 +355,96 @@ def decode(model: GraspModel, x: np.ndarray, wrist_position: np.ndarray | None =
     x = np.clip(x, model.lower, model.upper)
     hand, sdf, settings = model.hand, model.sdf, model.settings
     n = len(x)
-    tol = settings.tolerance
+    rows = _rows_to_decode(x, reuse, changed)
 
-    wrist = wrist_transforms(model, x, wrist_position)
-    rot, trans = wrist[:, :3, :3], wrist[:, :3, 3]
+    wrist = wrist_transforms(model, x, wrist_position) if reuse is None else reuse.wrist
+    rot, trans = np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3])
     theta = x[:, :15].reshape(n, N_FINGERS, 3)
     distal0, proximal0, pivot = theta[..., 0], theta[..., 1], theta[..., 2]
-    o_palm, ex_palm, ey_palm = hand.flexion_planes(pivot)
-    basis = _FingerBasis(
-        model,
-        np.einsum("pij,pfj->pfi", rot, o_palm) + trans[:, None, :],
-        np.einsum("pij,pfj->pfi", rot, ex_palm),
-        np.einsum("pij,pfj->pfi", rot, ey_palm),
-    )
+    # Flexion planes in the palm frame, one row per finger: (F, 3: base, ex, ey, 3).
+    planes = np.ascontiguousarray(np.stack(hand.flexion_planes(pivot), axis=-2).reshape(-1, 3, 3))
     d_span = hand.upper[0:15:3] - distal0
     p_span = hand.upper[1:15:3] - proximal0
-    distal0_f, proximal0_f = distal0.reshape(-1), proximal0.reshape(-1)
-    d_span_f, p_span_f = d_span.reshape(-1), p_span.reshape(-1)
-    s_f, blocked_f = _close_fingers(model, basis, distal0_f, proximal0_f, d_span_f, p_span_f)
-    s, blocked = s_f.reshape(n, N_FINGERS), blocked_f.reshape(n, N_FINGERS)
 
-    def final_points(s_final: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-        """(F', 28, 3) float32 link points of fingers ``rows`` closed to s_final (F',)."""
-        sel = slice(None) if rows is None else rows
-        d = distal0_f[sel] + s_final * d_span_f[sel]
-        p = proximal0_f[sel] + s_final * p_span_f[sel]
-        return np.stack(basis.points(d, p, _FINAL_COEFF, rows), axis=-1)
-
-    def clearance_of(points: np.ndarray) -> np.ndarray:
-        return sdf.distance_xyz(points[..., 0], points[..., 1], points[..., 2]) - model.point_radii
-
-    pts = final_points(s_f)                     # (F, 28, 3)
-    clearance = clearance_of(pts)
-    tip_gap = clearance[..., -1].reshape(n, N_FINGERS).copy()  # of the closed pose, before re-opening
-    # The sphere that stopped the finger is within the search resolution of the
-    # surface; a pad within the tolerance is a fingertip contact.
-    contact = ((tip_gap <= tol) & ~blocked
-               & (clearance.min(axis=-1).reshape(n, N_FINGERS) >= -settings.max_penetration))
-    # Fingers without a fingertip contact take no part in the precision grasp: they stay
-    # at their pre-shape (closed to their limits they would fold into the palm or
-    # themselves; stopped by a middle link they would not be a precision contact).
-    s = np.where(contact, s, 0.0)
-    reopened = np.flatnonzero((~contact).reshape(-1) & (s_f != 0.0))
-    if len(reopened):
-        pts[reopened] = final_points(np.zeros(len(reopened)), reopened)
-        clearance[reopened] = clearance_of(pts[reopened])
-    pts = pts.reshape(n, N_FINGERS, -1, 3)
-    clearance = clearance.astype(np.float64).reshape(n, N_FINGERS, -1)
-    distal = distal0 + s * d_span
-    proximal = proximal0 + s * p_span
-    penetration = np.maximum(0.0, -clearance.min(axis=-1))
-    tips = pts[..., -1, :]
-    surface, normals = sdf.closest_surface_point(tips)
-
-    link_contact = (clearance[..., _NON_TIP_LINKS].min(axis=-1) <= settings.link_contact_tolerance) & ~blocked
+    r = len(rows)
+    s_r = np.empty(r)
+    blocked_r = np.empty(r, dtype=bool)
+    contact_r = np.empty(r, dtype=bool)
+    pts = np.empty((r, len(_FINAL_POINTS), 3))
+    clearance = np.empty((r, len(_FINAL_POINTS)))
+    tip_gap_r = kernels.close_fingers(
+        sdf._values64, sdf._origin64, float(sdf.spacing), rot, trans, planes, model.link_lengths,
+        float(hand.coupling_ratio), np.ascontiguousarray(distal0).reshape(-1),
+        np.ascontiguousarray(proximal0).reshape(-1), np.ascontiguousarray(d_span).reshape(-1),
+        np.ascontiguousarray(p_span).reshape(-1), _SWEEP_COEFF, model.sweep_radii, _FINAL_COEFF,
+        model.point_radii, settings.coarse_steps, settings.refine_steps, settings.max_penetration,
+        settings.tolerance, rows, s_r, blocked_r, contact_r, pts, clearance,
+    )
+    palm_depth_r = np.empty(r)
+    kernels.palm_depths(pts, _CLEAR_OF_PALM.start, _CLEAR_OF_PALM.stop, rows, rot, trans, model.palm_center,
+                        model.palm_half_extents, palm_depth_r)
+    surface_r, normals_r = sdf.closest_surface_point(pts[:, -1, :])
+    link_contact_r = (clearance[:, _NON_TIP_LINKS].min(axis=-1) <= settings.link_contact_tolerance) & ~blocked_r
     if settings.allow_link_contacts:
-        link_contact = np.zeros_like(link_contact)
+        link_contact_r[:] = False
+    # Fingers without a fingertip contact take no part in the precision grasp: they are
+    # back at their pre-shape (closed to their limits they would fold into the palm or
+    # themselves; stopped by a middle link they would not be a precision contact).
+    flex_r = np.stack([distal0.reshape(-1)[rows] + s_r * d_span.reshape(-1)[rows],
+                       proximal0.reshape(-1)[rows] + s_r * p_span.reshape(-1)[rows]], axis=-1)
+    per_row = {
+        "tip_gap": tip_gap_r, "contact": contact_r, "blocked": blocked_r,
+        "penetration": np.maximum(0.0, -clearance.min(axis=-1)), "link_contact": link_contact_r,
+        "contact_points": surface_r, "contact_normals": normals_r, "palm_depth": palm_depth_r,
+        "joints": pts[:, _JOINT_INDEX, :],
+    }
+    if reuse is None:
+        out = {name: value.reshape((n, N_FINGERS) + value.shape[1:]) for name, value in per_row.items()}
+        flexions = flex_r.reshape(n, N_FINGERS, 2)
+    else:
+        out = {}
+        for name, value in per_row.items():
+            full = getattr(reuse, name).copy()
+            full.reshape((n * N_FINGERS,) + value.shape[1:])[rows] = value
+            out[name] = full
+        flexions = reuse.closed[:, :15].reshape(n, N_FINGERS, 3)[..., :2].copy()
+        flexions.reshape(-1, 2)[rows] = flex_r
 
-    joints = pts[..., _JOINT_INDEX, :]
-    collide = finger_collisions(joints, np.array([*hand.link_radii[:2], hand.pad_radius]), settings.finger_overlap)
-    # Fingers through the palm (a free finger closed to its limits can fold back into it).
-    rel = (pts[..., _CLEAR_OF_PALM, :] - trans[:, None, None, :]).reshape(n, -1, 3)
-    in_palm = (rel @ rot).reshape(n, N_FINGERS, -1, 3)  # rows: R^T (p - t)
-    depth = palm_penetration(in_palm, hand.palm_center, hand.palm_half_extents)
-    collide |= depth.max(axis=-1) > settings.palm_overlap
+    joints = np.ascontiguousarray(out["joints"])
+    collide = finger_collisions(joints, model.capsule_radii, settings.finger_overlap)
+    # Fingers through the palm (a finger flexed across the palm can pass through it).
+    collide |= out["palm_depth"] > settings.palm_overlap
 
     closed = x.copy()
-    closed[:, 0:15:3] = distal
-    closed[:, 1:15:3] = proximal
-    if wrist_position is None:
+    closed[:, 0:15:3] = flexions[..., 0]
+    closed[:, 1:15:3] = flexions[..., 1]
+    if reuse is not None:
+        palm_pen = reuse.palm_penetration
+    elif wrist_position is None:
         palm_pen = np.zeros(n)
     else:
         palm_pen = _palm_penetration(model, wrist)
-    return DecodedGrasps(
-        closed=closed, wrist=wrist, joints=joints, tip_gap=tip_gap, contact=contact,
-        contact_points=surface, contact_normals=normals, penetration=penetration,
-        blocked=blocked, finger_collision=collide, palm_penetration=palm_pen,
-        link_contact=link_contact,
-    )
+    return DecodedGrasps(closed=closed, wrist=wrist, finger_collision=collide, palm_penetration=palm_pen, **out)
+
+
+def _rows_to_decode(x: np.ndarray, reuse: DecodedGrasps | None, changed: np.ndarray | None) -> np.ndarray:
+    """Finger rows (particle * 5 + finger) that :func:`decode` closes: (R,) int64."""
+    n = len(x)
+    if reuse is None and changed is None:
+        return np.arange(n * N_FINGERS, dtype=np.int64)
+    if reuse is None or changed is None:
+        raise ValueError("reuse, changed: give both or neither")
+    changed = np.asarray(changed)
+    if changed.shape != (n, N_FINGERS) or changed.dtype != bool:
+        raise ValueError(f"changed: expected a ({n}, {N_FINGERS}) bool array, got {changed.dtype} {changed.shape}")
+    if reuse.closed.shape != x.shape:
+        raise ValueError(f"reuse: decodes {reuse.closed.shape[0]} particles, x has {n}")
+    # A kept finger's flexions are closed in ``reuse`` (not comparable); its pivot is not.
+    if not np.array_equal(reuse.closed[:, 15:], x[:, 15:]):
+        raise ValueError("reuse: the wrist angles or the standoff differ from x")
+    if not np.all((reuse.closed[:, 2:15:3] == x[:, 2:15:3]) | changed):
+        raise ValueError("reuse: the pivot of a finger not in changed differs from x")
+    return np.flatnonzero(changed.reshape(-1)).astype(np.int64)
 
 
 def _palm_penetration(model: GraspModel, wrist: np.ndarray) -> np.ndarray:

@@ -263,7 +263,10 @@ class GuidedGenerator:
     def verify(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The verification test: regenerate illegal fingers only, a bounded number of rounds.
 
-        Only the particles with an illegal finger are decoded again.
+        Only the particles with an illegal finger are decoded again, and of them only the
+        regenerated fingers are closed again (the others keep their decoding; collisions
+        between fingers are checked anew). A particle decoded again counts as one more
+        evaluation, as a full decode would.
 
         x : (B, 19) -> (x after regeneration, (B,) bool valid: legal and >= 2 contacts)
         """
@@ -271,15 +274,16 @@ class GuidedGenerator:
         x = x.copy()
         valid = np.zeros(len(x), dtype=bool)
         todo = np.arange(len(x))
+        decoded, bad = None, None
         for round_ in range(self.verification_rounds + 1):
-            decoded = decode(self.model, x[todo], self.wrist_position)
+            decoded = decode(self.model, x[todo], self.wrist_position, reuse=decoded, changed=bad)
             self.evaluations += len(todo)
             bad = decoded.finger_illegal(limit)
             valid[todo] = ~bad.any(axis=1) & (decoded.n_contacts >= 2)
             retry = bad.any(axis=1)
             if round_ == self.verification_rounds or not retry.any():
                 break
-            todo, bad = todo[retry], bad[retry]
+            todo, bad, decoded = todo[retry], bad[retry], decoded.take(retry)
             ranges = self.ranges.opened(0.6 ** (round_ + 1))
             fresh = sample_fingers(self.model, len(todo), self.rng, ranges).reshape(-1, N_FINGERS, 3)
             fingers = x[todo, :15].reshape(-1, N_FINGERS, 3)

@@ -21,7 +21,11 @@ check the request, hand it to the worker and ``await`` an rclpy Future, so the
 executor keeps serving (progress, parameters, other callers) while a plan runs. The
 worker completes that Future through ``executor.create_task`` (a Future completed
 directly from another thread does not wake the executor). The worker publishes progress,
-action feedback and markers itself (publishing is thread-safe in rclpy).
+action feedback and markers itself (publishing is thread-safe in rclpy). The worker's
+first job loads the planner's compiled kernels (:func:`grasp_apso.planner.warm_up`, about
+0.3 s; once after an install about 5 s while they compile); requests that arrive
+meanwhile wait behind it. The kernels release the GIL, so the executor's threads keep
+running while a plan computes.
 
 Requests
 --------
@@ -96,7 +100,7 @@ from .conversions import (
 )
 from .hand import HandModel, load_hand
 from .objects import BUILTIN_OBJECTS, ObjectError
-from .planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan
+from .planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan, warm_up
 
 __all__ = ["GraspPlannerNode", "PARAMETERS", "main"]
 
@@ -327,6 +331,9 @@ class GraspPlannerNode(Node):
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
             callback_group=group,
         )
+        # The worker's first job: load the compiled kernels, so that the first request
+        # does not pay for it (requests submitted meanwhile wait behind it).
+        self._worker.submit(self._warm_up)
         self.get_logger().info(
             f"ready: service and action {self.resolve_service_name('~/plan_grasp')}, progress on "
             f"{self._progress_pub.topic_name}, markers on {self._marker_pub.topic_name}")
@@ -622,6 +629,18 @@ class GraspPlannerNode(Node):
             except Exception:  # noqa: BLE001 -- executor shut down: nobody awaits any more
                 pass
         future.set_result(outcome)
+
+    def _warm_up(self) -> None:
+        """Worker thread: load the compiled kernels (never raises: a request would then
+        pay for the load, or report the same error itself)."""
+        if self._stopping.is_set():
+            return
+        try:
+            seconds = warm_up()
+        except Exception:  # noqa: BLE001 -- the worker never dies
+            self.get_logger().error(f"warm-up failed\n{traceback.format_exc()}")
+            return
+        self.get_logger().debug(f"planner kernels loaded in {seconds:.2f} s")
 
     def _build_object(self, job: _Job) -> objects.GraspObject:
         if job.source == "object_name":

@@ -28,7 +28,7 @@ from .swarm import IterationStats, SwarmOptions, run_swarm
 
 __all__ = [
     "ALGORITHMS", "Contact", "GraspResult", "IterationStats", "Objective", "PlanOptions",
-    "PlanningError", "plan", "prepare",
+    "PlanningError", "plan", "prepare", "warm_up",
 ]
 
 ALGORITHMS: tuple[str, ...] = ("apso", "pso")
@@ -283,6 +283,23 @@ def plan(
             if other.valid and other.force_closure:
                 result = replace(other, runner_up=True)
     return result
+
+
+def warm_up() -> float:
+    """Load the compiled kernels (:mod:`grasp_apso.kernels`) before the first plan.
+
+    They are numba functions cached on disk: a process loads them on its first use,
+    about 0.3 s, and once after an install compiles them, about 5 s. This plans a tiny
+    grasp (the built-in cube, 2 particles, 1 iteration) so that a caller can pay that
+    up front: the node does it in its worker thread before the first request, the
+    command line before it times a plan. Idempotent; returns the seconds it took.
+    """
+    from .objects import builtin
+
+    t0 = time.perf_counter()
+    plan(builtin("cube"), options=PlanOptions(particles=2, neighborhood_size=2, iterations=1),
+         rng=np.random.default_rng(0))
+    return time.perf_counter() - t0
 
 
 def _closure_runner_up(model, problem, swarm, best: np.ndarray, options: PlanOptions) -> np.ndarray | None:

@@ -56,6 +56,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull
 
+from . import kernels
+
 try:  # scipy >= 1.8 exposes QhullError here
     from scipy.spatial import QhullError
 except ImportError:  # pragma: no cover - very old scipy
@@ -534,13 +536,6 @@ def epsilon_quality_batch(
     return eps, fc
 
 
-def _finger_subsets(n_fingers: int) -> list[np.ndarray]:
-    """All subsets of 2 or more fingers, grouped by size: [(S_k, k) arrays]."""
-    from itertools import combinations
-
-    return [np.array(list(combinations(range(n_fingers), k))) for k in range(2, n_fingers + 1)]
-
-
 def normal_wrench_residual(
     points: np.ndarray, normals: np.ndarray, mask: np.ndarray, com: np.ndarray, torque_scale: float,
     min_share: float = 0.0,
@@ -553,7 +548,8 @@ def normal_wrench_residual(
     friction and three or more non-collinear contacts such a grasp is force closure
     (the squeeze lies strictly inside every cone). It grows as the best squeeze leaves
     a net wrench. Exact: the min-norm point of at most F points is found by enumerating
-    the faces spanned by subsets of contacts (31 for F = 5), batched over particles.
+    the faces spanned by subsets of contacts (26 of two or more for F = 5; a compiled
+    loop, :func:`grasp_apso.kernels.min_norm_hull_distance`).
 
     Parameters
     ----------
@@ -589,24 +585,7 @@ def normal_wrench_residual(
         delta = min_share / nc
         total = (wrench * mask[..., None]).sum(axis=1, keepdims=True)
         wrench = (1.0 - nc * delta) * wrench + delta * total
-    n_p, n_f = mask.shape
-    # A single contact's wrench has norm >= 1: the hull of one point never beats that.
-    best = np.where(mask.any(axis=1), 1.0, np.inf)
-    for subsets in _finger_subsets(n_f):
-        k = subsets.shape[1]
-        usable = mask[:, subsets].all(axis=2)  # (P, S)
-        if not usable.any():
-            continue
-        pi, si = np.nonzero(usable)
-        w = wrench[pi[:, None], subsets[si]]  # (Q, k, 6), usable (particle, subset) pairs
-        # min |a W| s.t. sum a = 1 (KKT of the affine min-norm problem); keep a >= 0.
-        kkt = np.zeros((len(pi), k + 1, k + 1))
-        kkt[:, :k, :k] = w @ np.swapaxes(w, -1, -2) + 1e-12 * np.eye(k)
-        kkt[:, :k, k] = kkt[:, k, :k] = 1.0
-        rhs = np.zeros((len(pi), k + 1, 1))
-        rhs[:, k, 0] = 1.0
-        a = np.linalg.solve(kkt, rhs)[:, :k, 0]
-        dist = np.linalg.norm(np.einsum("qk,qkd->qd", a, w), axis=-1)
-        dist = np.where((a >= -1e-9).all(axis=-1), dist, np.inf)
-        np.minimum.at(best, pi, dist)
+    best = np.empty(mask.shape[0])
+    kernels.min_norm_hull_distance(np.ascontiguousarray(wrench, dtype=np.float64),
+                                   np.ascontiguousarray(mask), best)
     return best

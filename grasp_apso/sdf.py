@@ -3,7 +3,7 @@
 Exact point-to-mesh queries cost about 200 us each (python-fcl) or far more (trimesh), and
 a plan makes hundreds of thousands of them (``shared/notes/geometry-speed.md``). So the
 signed distance is sampled once on a regular grid around the object and read back by
-trilinear interpolation, about 50 ns a point.
+trilinear interpolation (a compiled loop, :mod:`grasp_apso.kernels`).
 
 Building the grid (:func:`build_sdf_grid`):
 
@@ -32,9 +32,7 @@ import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-# Corner offsets of a grid cell, in (i, j, k) order, for trilinear interpolation.
-_CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-
+from . import kernels
 
 @dataclass(frozen=True)
 class SignedDistanceGrid:
@@ -63,20 +61,8 @@ class SignedDistanceGrid:
         """(3,) float, m: position of the last node."""
         return self.origin + self.spacing * (np.array(self.shape) - 1)
 
-    @cached_property
-    def _corner_table(self) -> np.ndarray:
-        """(cells, 8) float32: the 8 corner values of every cell, for one gather a point."""
-        v = self.values.astype(np.float32)
-        table = np.stack(
-            [v[i : v.shape[0] - 1 + i, j : v.shape[1] - 1 + j, k : v.shape[2] - 1 + k]
-             for i, j, k in _CORNERS],
-            axis=-1,
-        ).reshape(-1, 8)
-        table.flags.writeable = False
-        return table
-
     def distance_xyz(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """Signed distance at points given as separate coordinate arrays (the fast path).
+        """Signed distance at points given as separate coordinate arrays.
 
         Parameters
         ----------
@@ -87,40 +73,21 @@ class SignedDistanceGrid:
         (...) float, m (negative inside)
         """
         shape = np.shape(x)
-        dtype = np.float32 if getattr(x, "dtype", None) == np.float32 else np.float64
-        # float32 stays float32 (half the memory traffic); flat 1-d arrays for out= below.
-        x, y, z = (np.asarray(v, dtype=dtype).reshape(-1) for v in (x, y, z))
-        n_cells = self.shape[0] - 1, self.shape[1] - 1, self.shape[2] - 1
-        real = x.dtype.type
-        inv = real(1.0 / self.spacing)
-        strides = (n_cells[1] * n_cells[2], n_cells[2], 1)
-        # In-place ufuncs, no np.clip: decode calls this ~8 times a batch, and the
-        # per-call overhead of small batches counts as much as the arithmetic.
-        out2 = cell = None
-        frac = []
-        for coord, o, n, stride in zip((x, y, z), self.origin, n_cells, strides):
-            g = coord - real(o)
-            g *= inv
-            gc = np.maximum(g, real(0.0))
-            np.minimum(gc, real(n - 1e-3), out=gc)  # 1e-3 cell: safe in float32 too
-            i = gc.astype(np.intp)
-            g -= gc  # grid units outside the box
-            g *= g
-            out2 = g if out2 is None else np.add(out2, g, out=out2)
-            gc -= i
-            frac.append(gc.reshape(-1, 1))
-            if stride != 1:
-                i *= stride
-            cell = i if cell is None else np.add(cell, i, out=cell)
-        c = np.take(self._corner_table, cell.reshape(-1), axis=0)
-        fx, fy, fz = frac
-        # Corners are ordered (i, j, k) with k fastest: interpolate z, then y, then x.
-        cz = c[:, 0::2] + (c[:, 1::2] - c[:, 0::2]) * fz
-        cy = cz[:, 0::2] + (cz[:, 1::2] - cz[:, 0::2]) * fy
-        d = cy[:, 0] + (cy[:, 1] - cy[:, 0]) * fx[:, 0]
-        np.sqrt(out2, out=out2)
-        out2 *= real(self.spacing)
-        return (d + out2).reshape(shape)
+        x, y, z = (np.ascontiguousarray(v, dtype=np.float64).reshape(-1) for v in (x, y, z))
+        if not x.shape == y.shape == z.shape:
+            raise ValueError(f"x, y, z: expected the same shape, got {np.shape(x)}, {np.shape(y)}, {np.shape(z)}")
+        out = np.empty(x.shape[0])
+        kernels.grid_distances(self._values64, self._origin64, float(self.spacing), x, y, z, out)
+        return out.reshape(shape)
+
+    @cached_property
+    def _values64(self) -> np.ndarray:
+        """The node values as one C-contiguous float64 block (what the kernels read)."""
+        return np.ascontiguousarray(self.values, dtype=np.float64)
+
+    @cached_property
+    def _origin64(self) -> np.ndarray:
+        return np.ascontiguousarray(self.origin, dtype=np.float64)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance at points (trilinear interpolation).
@@ -139,19 +106,19 @@ class SignedDistanceGrid:
     def distance_and_gradient(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance and its unit gradient (the outward normal near the surface).
 
-        The gradient is a central difference over half a cell, all look-ups in one call.
+        The gradient is a central difference over half a cell.
 
         points : (..., 3) float, m -> ((...,) float m, (..., 3) float unit)
         """
-        points = np.asarray(points, dtype=float)
-        h = 0.5 * self.spacing
-        probe = points[None] + np.concatenate([np.zeros((1, 3)), h * np.eye(3), -h * np.eye(3)]).reshape(
-            (7,) + (1,) * (points.ndim - 1) + (3,)
-        )
-        d = self.distance(probe)
-        grad = np.moveaxis(d[1:4] - d[4:7], 0, -1)
-        grad /= np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-12)
-        return d[0], grad
+        points = np.asarray(points, dtype=np.float64)
+        if points.shape[-1:] != (3,):
+            raise ValueError(f"points: expected (..., 3), got {points.shape}")
+        flat = np.ascontiguousarray(points).reshape(-1, 3)
+        distance = np.empty(len(flat))
+        gradient = np.empty((len(flat), 3))
+        kernels.grid_distances_gradients(self._values64, self._origin64, float(self.spacing), flat, distance,
+                                         gradient)
+        return distance.reshape(points.shape[:-1]), gradient.reshape(points.shape)
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """Unit gradient of the signed distance (outward surface normal near the surface).

@@ -6,7 +6,8 @@
 #      dependencies (requirements.txt)
 #   4. build the interface package srv_defs/ (grasp_apso_interfaces) with CMake into .venv
 #   5. pip install . (the grasp_apso package itself; NOT editable, see README)
-#   6. smoke test: import rclpy and the generated interfaces
+#   6. smoke test: import rclpy and the generated interfaces, plan a tiny grasp with the
+#      installed package (compiles its numba kernels into their on-disk cache)
 # Each step is skipped when its inputs did not change (hash stamps in .venv/.setup-stamps),
 # so a re-run takes a few seconds. Logs of the noisy steps: build/logs/.
 #
@@ -196,9 +197,12 @@ fi
 
 # ---------------------------------------------------------------------------------------
 say "6/6 smoke test"
-if ! "$VPY" -c "import rclpy; from grasp_apso_interfaces.srv import PlanGrasp; from grasp_apso_interfaces.msg import GraspProgress; from grasp_apso_interfaces.action import PlanGrasp" 2>"$LOG_DIR/smoke.log"; then
+# -I: the installed grasp_apso, not the source tree in the working directory. Planning a
+# tiny grasp compiles the numba kernels into the installed package's cache (about 5 s
+# after an install, then about 0.5 s), so the node's first request does not.
+if ! "$VPY" -I -c "import rclpy; from grasp_apso_interfaces.srv import PlanGrasp; from grasp_apso_interfaces.msg import GraspProgress; from grasp_apso_interfaces.action import PlanGrasp; from grasp_apso.planner import warm_up; warm_up()" 2>"$LOG_DIR/smoke.log"; then
   cat "$LOG_DIR/smoke.log" >&2
   rm -rf "$STAMPS"   # make the next run redo every step
-  fail "smoke test failed: rclpy / grasp_apso_interfaces do not import (stamps cleared; re-run, or 'make clean distclean')"
+  fail "smoke test failed: rclpy / grasp_apso_interfaces do not import, or the installed planner cannot plan (stamps cleared; re-run, or 'make clean distclean')"
 fi
 say "ready in $((SECONDS - T_START)) s: $VPY (no 'source' needed; for ament_index lookups export AMENT_PREFIX_PATH=$VENV)"

@@ -9,12 +9,14 @@ a decision threshold."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from grasp_apso import collision
+from grasp_apso import contacts as contacts_module
 from grasp_apso.collision import finger_collisions, segment_distances, verify_with_fcl
 from grasp_apso.contacts import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model, wrist_transforms
 from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand
@@ -272,11 +274,150 @@ def test_closed_configuration_respects_limits_and_only_flexes(models, name: str)
     s = (closed[:, FLEXION_COLUMNS].reshape(-1, 5, 2) - pre) / span
     np.testing.assert_allclose(s[..., 0], s[..., 1], atol=1e-6)
     assert ((s >= 0.0) & (s <= 1.0)).all()
-    # the joints reported are the forward kinematics of the closed configuration (1 um:
-    # the decoder may compute in float32)
+    # the joints reported are the forward kinematics (DH products) of the closed configuration
     palm = model.hand.finger_frames(closed[:, :18])[:, :, :, :3, 3]
     world = np.einsum("pij,pfkj->pfki", decoded.wrist[:, :3, :3], palm) + decoded.wrist[:, None, None, :3, 3]
-    np.testing.assert_allclose(decoded.joints, world, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(decoded.joints, world, rtol=0, atol=1e-9)
+
+
+def reference_closing(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closing motion of contacts.py's docstring written out plainly in numpy (the
+    decoder runs it in compiled loops): coarse sweep of the sweep spheres, Illinois
+    regula falsi on the first bracket, contact test on the dense points, re-opening.
+
+    -> s (P, 5) closing parameter returned, contact (P, 5), blocked (P, 5)
+    """
+    hand, settings, sdf = model.hand, model.settings, model.sdf
+    n = len(x)
+    wrist = wrist_transforms(model, x)
+    theta = x[:, :15].reshape(n, 5, 3)
+    origin, ex, ey = hand.flexion_planes(theta[..., 2])
+    d0, p0 = theta[..., 0], theta[..., 1]
+    d_span, p_span = hand.upper[0:15:3] - d0, hand.upper[1:15:3] - p0
+
+    def clearance(p: int, f: int, s: float, points: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        uv = hand.planar_chain(np.full((1, 5), d0[p, f] + s * d_span[p, f]),
+                               np.full((1, 5), p0[p, f] + s * p_span[p, f]), points)[0, f]
+        palm = origin[p, f] + uv[:, :1] * ex[p, f] + uv[:, 1:] * ey[p, f]
+        return sdf.distance(palm @ wrist[p, :3, :3].T + wrist[p, :3, 3]) - radii
+
+    steps = np.linspace(0.0, 1.0, settings.coarse_steps)
+    s_out = np.zeros((n, 5))
+    contact = np.zeros((n, 5), dtype=bool)
+    blocked = np.zeros((n, 5), dtype=bool)
+    for p in range(n):
+        for f in range(5):
+            sweep = [clearance(p, f, s, contacts_module._SWEEP_POINTS, model.sweep_radii).min() for s in steps]
+            blocked[p, f] = sweep[0] < -settings.max_penetration
+            hits = np.flatnonzero(np.array(sweep) <= 0.0)
+            if len(hits) == 0:
+                s_stop = 1.0
+            elif hits[0] == 0:
+                s_stop = 0.0
+            else:
+                k = hits[0]
+                lo, hi, c_lo, c_hi, side = steps[k - 1], steps[k], sweep[k - 1], sweep[k], 0
+                for _ in range(settings.refine_steps):
+                    denom = c_lo - c_hi
+                    mid = lo + np.clip(c_lo / (denom if abs(denom) > 1e-12 else 1.0), 0.05, 0.95) * (hi - lo)
+                    c_mid = clearance(p, f, mid, contacts_module._SWEEP_POINTS, model.sweep_radii).min()
+                    if c_mid > 0.0:
+                        c_hi = 0.5 * c_hi if side > 0 else c_hi
+                        lo, c_lo, side = mid, c_mid, 1
+                    else:
+                        c_lo = 0.5 * c_lo if side < 0 else c_lo
+                        hi, c_hi, side = mid, c_mid, -1
+                s_stop = lo
+            final = clearance(p, f, s_stop, contacts_module._FINAL_POINTS, model.point_radii)
+            contact[p, f] = (final[-1] <= settings.tolerance and not blocked[p, f]
+                             and final.min() >= -settings.max_penetration)
+            s_out[p, f] = s_stop if contact[p, f] else 0.0
+    return s_out, contact, blocked
+
+
+@pytest.mark.parametrize("name", OBJECTS)
+def test_compiled_closing_matches_a_plain_reference(models, name: str) -> None:
+    model = models[name]
+    x = grg_like(model, 40, seed=29)
+    decoded = decode(model, x)
+    s, contact, blocked = reference_closing(model, x)
+    assert contact.sum() >= 20 and (~contact).sum() >= 20  # both outcomes are exercised
+    np.testing.assert_array_equal(decoded.contact, contact)
+    np.testing.assert_array_equal(decoded.blocked, blocked)
+    pre = x[:, :15].reshape(-1, 5, 3)[..., :2]
+    span = np.asarray(model.upper)[:15].reshape(5, 3)[:, :2] - pre
+    expected = pre + s[..., None] * span
+    np.testing.assert_allclose(decoded.closed[:, :15].reshape(-1, 5, 3)[..., :2], expected, rtol=0, atol=1e-9)
+
+
+def test_a_thumb_folded_through_the_palm_collides(models) -> None:
+    model = models["sphere"]
+    settings = model.settings
+    x = np.zeros((2, N_DIMS))
+    x[:, :15] = np.clip(0.0, model.lower[:15], model.upper[:15])
+    x[0, 12:15] = np.radians([30.0, 90.0, 45.0])  # thumb flexed across, through the palm
+    x[1, 12:15] = np.radians([30.0, 0.0, 45.0])   # the same thumb, proximal joint straight
+    # The wrist 1 m away: nothing is touched and every finger stays at its pre-shape.
+    decoded = decode(model, x, wrist_position=np.array([1.0, 0.0, 0.0]))
+    assert not decoded.contact.any()
+    # Analytic depth of the thumb's links in the palm box (palm frame), from the middle of
+    # its proximal link to the pad (the base of a finger sits on the palm).
+    pts = dense_link_points(decoded.joints)[:, THUMB]  # (2, 3 links, n, 3)
+    t = np.linspace(0.0, 1.0, pts.shape[2])
+    rot, trans = decoded.wrist[:, :3, :3], decoded.wrist[:, :3, 3]
+    local = np.einsum("pkni,pij->pknj", pts - trans[:, None, None, :], rot)
+    depth = (model.palm_half_extents - np.abs(local - model.palm_center)).min(axis=-1)
+    depth[:, 0, t < 0.5] = -np.inf
+    depth = depth.max(axis=(1, 2))
+    assert depth[0] > settings.palm_overlap + 0.002 and depth[1] < 0.0
+    capsules = finger_collisions(decoded.joints, model.capsule_radii, settings.finger_overlap)
+    assert not capsules.any()  # no finger against another: only the palm check can flag it
+    assert decoded.finger_collision[0, THUMB] and not decoded.finger_collision[1].any()
+    assert not decoded.legal(settings.max_penetration)[0]
+
+
+@pytest.mark.parametrize("name", ["cube", "fish"])
+def test_redecoding_only_changed_fingers_equals_a_full_decode(models, name: str) -> None:
+    model = models[name]
+    x = grg_like(model, 60, seed=30)
+    first = decode(model, x)
+    rng = np.random.default_rng(31)
+    changed = rng.random((60, 5)) < 0.3
+    fresh = grg_like(model, 60, seed=32)[:, :15].reshape(60, 5, 3)
+    y = x.copy()
+    fingers = y[:, :15].reshape(60, 5, 3)
+    fingers[changed] = fresh[changed]
+    y[:, :15] = fingers.reshape(60, 15)
+    partial = decode(model, y, reuse=first, changed=changed)
+    full = decode(model, y)
+    assert (partial.contact != first.contact).any()  # the change matters
+    for f in dataclasses.fields(full):
+        np.testing.assert_array_equal(getattr(partial, f.name), getattr(full, f.name), err_msg=f.name)
+    # a subset of the batch, as GRG's later rounds use it
+    keep = changed.any(axis=1)
+    again = decode(model, y[keep], reuse=partial.take(keep), changed=np.zeros((keep.sum(), 5), bool))
+    np.testing.assert_array_equal(again.closed, full.closed[keep])
+    np.testing.assert_array_equal(again.finger_collision, full.finger_collision[keep])
+
+
+def test_redecoding_rejects_particles_that_changed_elsewhere(models) -> None:
+    model = models["sphere"]
+    x = grg_like(model, 4, seed=33)
+    first = decode(model, x)
+    changed = np.zeros((4, 5), dtype=bool)
+    changed[0, 1] = True
+    with pytest.raises(ValueError, match="reuse, changed"):
+        decode(model, x, reuse=first)
+    with pytest.raises(ValueError, match="changed: expected"):
+        decode(model, x, reuse=first, changed=changed[:2])
+    moved = x.copy()
+    moved[2, 16] += 0.1  # a wrist angle
+    with pytest.raises(ValueError, match="wrist angles or the standoff"):
+        decode(model, moved, reuse=first, changed=changed)
+    turned = x.copy()
+    turned[3, 3 * 2 + 2] = 0.5 * (model.lower[8] + model.upper[8]) + 0.01  # middle pivot, not changed
+    with pytest.raises(ValueError, match="pivot of a finger not in changed"):
+        decode(model, turned, reuse=first, changed=changed)
 
 
 def test_out_of_bounds_particles_are_clamped(models) -> None:

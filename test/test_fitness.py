@@ -32,7 +32,7 @@ def _decoded(points, contact, tip_gap=None, legal=True) -> DecodedGrasps:
         tip_gap=gap, contact=np.asarray(contact, dtype=bool), contact_points=points,
         contact_normals=normals, penetration=np.zeros((p, 5)), blocked=np.zeros((p, 5), bool),
         finger_collision=np.tile(~np.asarray(legal, bool).reshape(-1, 1), (1, 5)) & np.eye(5, dtype=bool)[0],
-        palm_penetration=np.zeros(p), link_contact=np.zeros((p, 5), bool),
+        palm_penetration=np.zeros(p), link_contact=np.zeros((p, 5), bool), palm_depth=np.zeros((p, 5)),
     )
 
 

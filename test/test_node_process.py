@@ -87,6 +87,20 @@ def test_node_process_with_client_and_progress_subscriber_processes(client_conte
         req.object_name = 'cube'
         req.object_pose = identity_pose('world')
         req.iterations, req.seed = 6, 11  # particles from the -p override
+
+        # Discovery is not symmetric: the listener can see the node's publisher before that
+        # publisher knows the listener, and what it publishes meanwhile is lost (volatile
+        # QoS); a plan takes a few tens of ms. Probe until the listener hears a plan.
+        def heard(request_id):
+            return lambda lines: any(l.startswith(f'progress {request_id} ') for l in lines)
+
+        for _ in range(10):
+            probe = wait_future(client.call_async(req), 60.0)
+            if listener_out.wait(heard(probe.request_id), 2.0):
+                break
+        else:
+            pytest.fail(f'the listener heard none of 10 plans\n{listener_out.text()}')
+
         res = wait_future(client.call_async(req), 60.0)
         assert res.success, res.message
         assert list(res.configuration.name) == list(JOINT_NAMES)
