@@ -209,8 +209,9 @@ def _support_points(obj, n_directions: int = 2000) -> np.ndarray:
         polar = np.arccos(1.0 - 2.0 * k / n_directions)
         azimuth = np.pi * (1.0 + 5.0**0.5) * k
         dirs = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], 1)
-        # (directions, vertices): the arg-max runs along contiguous rows (10x faster).
-        hull = hull[np.unique(np.argmax(dirs @ hull.T, axis=1))]
+        extreme = np.empty(n_directions, dtype=np.int64)
+        kernels.support_function(np.ascontiguousarray(hull), dirs, np.empty(n_directions), extreme)
+        hull = hull[np.unique(extreme)]
     hull = np.ascontiguousarray(hull)
     hull.flags.writeable = False
     return hull
@@ -308,7 +309,9 @@ def wrist_transforms(
         return tf
     normal = rot[:, :, 2]
     com = np.asarray(model.obj.center_of_mass)
-    support = (model.support_points @ (-normal.T)).max(axis=0)  # extent toward the palm
+    support = np.empty(len(x))  # the object's extent toward the palm
+    kernels.support_function(model.support_points, np.ascontiguousarray(-normal), support,
+                             np.empty(len(x), dtype=np.int64))
     hand = model.hand
     palm_face = hand.palm_center[2] + hand.palm_half_extents[2]
     height = palm_face + model.settings.clearance + x[:, STANDOFF_INDEX] + support

@@ -100,6 +100,28 @@ def grid_distances_gradients(values, origin, spacing, points, distance, gradient
         gradient[n, 2] = gz / norm
 
 
+@_jit
+def support_function(points, directions, out, argmax):
+    """Support function of a point set: max over points of (point . direction) and the
+    point that attains it, per direction (a compiled loop: a BLAS product of this shape
+    wakes OpenBLAS's threads, which then spin on the other core).
+
+    points : (H, 3) float; directions : (P, 3) float
+    out : (P,) float, argmax : (P,) int (written)
+    """
+    for p in range(directions.shape[0]):
+        dx, dy, dz = directions[p, 0], directions[p, 1], directions[p, 2]
+        best = -np.inf
+        best_h = 0
+        for h in range(points.shape[0]):
+            v = points[h, 0] * dx + points[h, 1] * dy + points[h, 2] * dz
+            if v > best:
+                best = v
+                best_h = h
+        out[p] = best
+        argmax[p] = best_h
+
+
 # --------------------------------------------------------------------------------------
 # closing the fingers
 # --------------------------------------------------------------------------------------
@@ -118,31 +140,13 @@ def _segments(lengths, finger, ratio, distal, proximal, seg):
 
 
 @_jit
-def _min_clearance(values, grid_origin, spacing, plane, coeff, radii, seg):
-    """Smallest clearance (m) of the link spheres (coeff, radii) of a finger whose flexion
-    plane is ``plane`` (3, 3: base, ex, ey in the object frame) and planar link vectors
-    ``seg`` (3, 2)."""
-    ox, oy, oz = grid_origin[0], grid_origin[1], grid_origin[2]
-    inv = 1.0 / spacing
-    best = np.inf
-    for m in range(coeff.shape[1]):
-        u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
-        v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
-        x = plane[0, 0] + u * plane[1, 0] + v * plane[2, 0]
-        y = plane[0, 1] + u * plane[1, 1] + v * plane[2, 1]
-        z = plane[0, 2] + u * plane[1, 2] + v * plane[2, 2]
-        c = _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z) - radii[m]
-        if c < best:
-            best = c
-    return best
-
-
-@_jit
-def _pose_points(values, grid_origin, spacing, plane, lengths, finger, ratio, distal, proximal,
-                 coeff, radii, seg, points, clearance, k):
+def _link_clearances(values, grid_origin, spacing, plane, seg, coeff, radii, points, clearance, k):
     """Link points of a finger (object frame) and their clearance, written to points[k]
-    (K, 3) and clearance[k] (K,). Returns the smallest clearance."""
-    _segments(lengths, finger, ratio, distal, proximal, seg)
+    (K, 3) and clearance[k] (K,); returns the smallest clearance (m).
+
+    plane : (3, 3) -- base, ex, ey of the finger's flexion plane in the object frame
+    seg : (3, 2) -- planar link vectors; coeff (3, K), radii (K,) -- the link spheres
+    """
     ox, oy, oz = grid_origin[0], grid_origin[1], grid_origin[2]
     inv = 1.0 / spacing
     best = np.inf
@@ -195,6 +199,8 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
     """
     seg = np.empty((3, 2))
     plane = np.empty((3, 3))
+    sweep_points = np.empty((1, sweep_coeff.shape[1], 3))  # scratch
+    sweep_clearance = np.empty((1, sweep_coeff.shape[1]))
     tip_gap = np.empty(rows.shape[0])
     last = final_coeff.shape[1] - 1
     inv_steps = 1.0 / (coarse_steps - 1)
@@ -235,7 +241,8 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
             seg[1, 1] = l1 * s1
             seg[2, 0] = l2 * c2
             seg[2, 1] = l2 * s2
-            c = _min_clearance(values, grid_origin, spacing, plane, sweep_coeff, sweep_radii, seg)
+            c = _link_clearances(values, grid_origin, spacing, plane, seg, sweep_coeff, sweep_radii,
+                                 sweep_points, sweep_clearance, 0)
             if step == 0:
                 is_blocked = c < -max_penetration
             if c <= 0.0:
@@ -263,7 +270,8 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
                 frac = min(max(frac, 0.05), 0.95)
                 mid = lo + frac * (hi - lo)
                 _segments(lengths, finger, ratio, d0 + mid * dspan, p0 + mid * pspan, seg)
-                c_mid = _min_clearance(values, grid_origin, spacing, plane, sweep_coeff, sweep_radii, seg)
+                c_mid = _link_clearances(values, grid_origin, spacing, plane, seg, sweep_coeff, sweep_radii,
+                                         sweep_points, sweep_clearance, 0)
                 if c_mid > 0.0:  # Illinois: halve the stale end's value when a side repeats
                     if side > 0:
                         c_hi *= 0.5
@@ -277,9 +285,9 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
                     c_hi = c_mid
                     side = -1
             s_stop = lo
-        lowest = _pose_points(values, grid_origin, spacing, plane, lengths, finger, ratio,
-                              d0 + s_stop * dspan, p0 + s_stop * pspan, final_coeff, final_radii, seg,
-                              points, clearance, k)
+        _segments(lengths, finger, ratio, d0 + s_stop * dspan, p0 + s_stop * pspan, seg)
+        lowest = _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
+                                  points, clearance, k)
         gap = clearance[k, last]
         tip_gap[k] = gap
         touching = gap <= tolerance and not is_blocked and lowest >= -max_penetration
@@ -289,8 +297,9 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
         else:
             s_out[k] = 0.0
             if s_stop != 0.0:
-                _pose_points(values, grid_origin, spacing, plane, lengths, finger, ratio,
-                             d0, p0, final_coeff, final_radii, seg, points, clearance, k)
+                _segments(lengths, finger, ratio, d0, p0, seg)
+                _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
+                                 points, clearance, k)
     return tip_gap
 
 
@@ -509,3 +518,59 @@ def min_norm_hull_distance(wrench, mask, out):
             if dist < best:
                 best = dist
         out[p] = best
+
+
+# --------------------------------------------------------------------------------------
+# contact polygon regularity (eq. 8-10) in the fitted plane
+# --------------------------------------------------------------------------------------
+@_jit
+def polygon_deviation(xy, mask, rtol, atol, out):
+    """Q of eq. 8-10 for contacts given in their best-fit plane.
+
+    The ``nc`` contacts of a particle (mask) are ordered by angle around the origin (their
+    centroid); the internal angle at vertex i is the counter-clockwise angle from edge
+    (i -> i+1) to edge (i -> i-1) in [0, 360) degrees; with theta_bar = 180 (nc - 2) / nc
+    and theta_max = (nc - 2)(180 - theta_bar) + 2 theta_bar,
+    Q = clip(sum |theta_i - theta_bar| / theta_max, 0, 1). Contacts that coincide (closer
+    than ``rtol`` times the polygon radius, or a radius below ``atol``) give 1.
+
+    xy : (G, F, 2) float, centred planar coordinates; mask : (G, F) bool with nc >= 3
+    out : (G,) float (written)
+    """
+    n_g, n_f = mask.shape
+    order = np.empty(n_f, dtype=np.int64)
+    angle = np.empty(n_f)
+    for g in range(n_g):
+        n = 0
+        r2 = 0.0
+        for i in range(n_f):
+            if not mask[g, i]:
+                continue
+            a = math.atan2(xy[g, i, 1], xy[g, i, 0])
+            j = n  # insertion sort by angle (stable, as numpy's for so few)
+            while j > 0 and angle[j - 1] > a:
+                angle[j] = angle[j - 1]
+                order[j] = order[j - 1]
+                j -= 1
+            angle[j] = a
+            order[j] = i
+            n += 1
+            r2 = max(r2, xy[g, i, 0] ** 2 + xy[g, i, 1] ** 2)
+        theta_bar = 180.0 * (n - 2.0) / n
+        theta_max = (n - 2.0) * (180.0 - theta_bar) + 2.0 * theta_bar
+        dev = 0.0
+        min_d2 = np.inf
+        for k in range(n):
+            cur, nxt, prv = order[k], order[(k + 1) % n], order[(k - 1) % n]
+            bx, by = xy[g, nxt, 0] - xy[g, cur, 0], xy[g, nxt, 1] - xy[g, cur, 1]
+            ax, ay = xy[g, prv, 0] - xy[g, cur, 0], xy[g, prv, 1] - xy[g, cur, 1]
+            theta = math.degrees(math.atan2(bx * ay - by * ax, bx * ax + by * ay)) % 360.0
+            dev += abs(theta - theta_bar)
+            for m in range(k + 1, n):
+                other = order[m]
+                d2 = (xy[g, other, 0] - xy[g, cur, 0]) ** 2 + (xy[g, other, 1] - xy[g, cur, 1]) ** 2
+                min_d2 = min(min_d2, d2)
+        q = min(max(dev / theta_max, 0.0), 1.0)
+        if min_d2 <= rtol * rtol * r2 or r2 <= atol * atol:
+            q = 1.0
+        out[g] = q

@@ -213,36 +213,11 @@ def polygon_shape_q(points: ArrayLike, mask: ArrayLike) -> NDArray[np.float64]:
     _, vecs = np.linalg.eigh(scatter)  # ascending eigenvalues
     xy = np.matmul(x, vecs[:, :, :0:-1])  # (G, F, 2): coordinates along e3, e2
 
-    # Order by angle around the centroid; masked slots pushed to the end.
-    ang = np.where(m, np.arctan2(xy[..., 1], xy[..., 0]), np.inf)
-    order = np.argsort(ang, axis=1)
-    xy = np.take_along_axis(xy, order[..., None], axis=1)
-
-    k = np.arange(n_fing)
-    valid = k[None, :] < n[:, None]  # first nc positions hold the polygon
-    nxt = np.where(k[None, :] + 1 < n[:, None], k[None, :] + 1, 0)
-    prv = np.where(k[None, :] == 0, n[:, None] - 1, k[None, :] - 1)
-    b = np.take_along_axis(xy, nxt[..., None], axis=1) - xy  # edge to next vertex
-    a = np.take_along_axis(xy, prv[..., None], axis=1) - xy  # edge to previous vertex
-    cross = b[..., 0] * a[..., 1] - b[..., 1] * a[..., 0]
-    dot = b[..., 0] * a[..., 0] + b[..., 1] * a[..., 1]
-    theta = np.degrees(np.arctan2(cross, dot)) % 360.0  # internal angles, [0, 360)
-
-    nf = n.astype(np.float64)
-    theta_bar = 180.0 * (nf - 2.0) / nf
-    theta_max = (nf - 2.0) * (180.0 - theta_bar) + 2.0 * theta_bar
-    dev = np.where(valid, np.abs(theta - theta_bar[:, None]), 0.0).sum(axis=1)
-    qg = np.clip(dev / theta_max, 0.0, 1.0)
-
-    # Coincident contacts (in the plane): the angles are meaningless, score worst.
-    r2 = np.where(valid, xy[..., 0] ** 2 + xy[..., 1] ** 2, 0.0).max(axis=1)
-    diff = xy[:, :, None, :] - xy[:, None, :, :]
-    d2 = (diff**2).sum(axis=-1)  # (G, F, F)
-    pair = valid[:, :, None] & valid[:, None, :] & ~np.eye(n_fing, dtype=bool)[None]
-    min_d2 = np.where(pair, d2, np.inf).min(axis=(1, 2))
-    degenerate = (min_d2 <= COINCIDENT_RTOL**2 * r2) | (r2 <= _COINCIDENT_ATOL**2)
-    qg[degenerate] = 1.0
-
+    # Order by angle around the centroid, internal angles, coincident contacts: a
+    # compiled loop over the particles.
+    qg = np.empty(len(sel))
+    kernels.polygon_deviation(np.ascontiguousarray(xy), np.ascontiguousarray(m), COINCIDENT_RTOL,
+                              _COINCIDENT_ATOL, qg)
     q[sel] = qg
     return q
 
