@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -12,6 +16,7 @@ from grasp_apso.planner import PlanOptions, PlanningError, plan
 from grasp_apso.swarm import SwarmOptions, run_swarm
 
 SMALL = dict(particles=20, iterations=8)
+REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_same_seed_same_result_and_different_seed_differs():
@@ -163,3 +168,20 @@ def test_a_force_closure_runner_up_replaces_a_global_best_that_is_not():
 def test_closure_candidates_is_validated():
     with pytest.raises(ValueError, match="closure_candidates"):
         PlanOptions(closure_candidates=0)
+
+
+def test_warm_up_loads_every_kernel_a_plan_uses():
+    # In a process of its own: here the other tests have compiled the kernels already.
+    script = (
+        "from numba.core.registry import CPUDispatcher\n"
+        "from grasp_apso import kernels\n"
+        "from grasp_apso.planner import warm_up\n"
+        "seconds = warm_up()\n"
+        "assert seconds > 0.0\n"
+        "print(sorted(n for n, f in vars(kernels).items()\n"
+        "             if isinstance(f, CPUDispatcher) and not n.startswith('_') and not f.signatures))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO_ROOT, capture_output=True, text=True,
+                         timeout=120, check=True).stdout
+    # segment_distances serves collision.segment_distances, which planning does not call.
+    assert out.strip() == "['segment_distances']"
