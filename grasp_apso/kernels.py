@@ -201,6 +201,8 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
     plane = np.empty((3, 3))
     sweep_points = np.empty((1, sweep_coeff.shape[1], 3))  # scratch
     sweep_clearance = np.empty((1, sweep_coeff.shape[1]))
+    pad_point = np.empty((1, 1, 3))
+    pad_clearance = np.empty((1, 1))
     tip_gap = np.empty(rows.shape[0])
     last = final_coeff.shape[1] - 1
     inv_steps = 1.0 / (coarse_steps - 1)
@@ -286,17 +288,24 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
                     side = -1
             s_stop = lo
         _segments(lengths, finger, ratio, d0 + s_stop * dspan, p0 + s_stop * pspan, seg)
-        lowest = _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
-                                  points, clearance, k)
-        gap = clearance[k, last]
+        # The pad first: a finger whose pad is not within the tolerance is no contact, and
+        # its pose at the stop is not needed (it is re-opened).
+        gap = _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff[:, last:],
+                               final_radii[last:], pad_point, pad_clearance, 0)
         tip_gap[k] = gap
-        touching = gap <= tolerance and not is_blocked and lowest >= -max_penetration
+        touching = False
+        at_stop = False
+        if gap <= tolerance and not is_blocked:
+            lowest = _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
+                                      points, clearance, k)
+            at_stop = True
+            touching = lowest >= -max_penetration
         contact[k] = touching
         if touching:
             s_out[k] = s_stop
         else:
             s_out[k] = 0.0
-            if s_stop != 0.0:
+            if s_stop != 0.0 or not at_stop:
                 _segments(lengths, finger, ratio, d0, p0, seg)
                 _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
                                  points, clearance, k)

@@ -551,8 +551,12 @@ def normal_wrench_residual(
     if not torque_scale > 0:
         raise ValueError(f"torque_scale: expected > 0, got {torque_scale!r}")
     force = -np.where(mask[..., None], normals, 0.0)
-    torque = np.cross(np.where(mask[..., None], points, 0.0) - com, force) / torque_scale
-    wrench = np.concatenate([force, torque], axis=-1)  # (P, F, 6)
+    arm = np.where(mask[..., None], points, 0.0) - com
+    wrench = np.empty(points.shape[:-1] + (6,))  # (P, F, 6): force, torque / torque_scale
+    wrench[..., :3] = force
+    # arm x force by components: np.cross costs more than the rest of this function.
+    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):
+        wrench[..., 3 + i] = (arm[..., j] * force[..., k] - arm[..., k] * force[..., j]) / torque_scale
     if not 0.0 <= min_share < 1.0:
         raise ValueError(f"min_share: expected [0, 1), got {min_share!r}")
     if min_share > 0.0:

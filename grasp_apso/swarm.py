@@ -142,7 +142,7 @@ def run_swarm(
     gbest_f = -np.inf
     gbest_nc = 0
     groups = np.arange(n) // options.neighborhood_size
-    n_groups = int(groups.max()) + 1
+    group_starts = np.arange(0, n, options.neighborhood_size)  # neighbourhoods are contiguous
     group_hist: list[np.ndarray] = []
     vmax = options.velocity_max * span
     result = SwarmResult(best=gbest, best_fitness=gbest_f)
@@ -178,7 +178,7 @@ def run_swarm(
         if adaptive:
             # Inactive particles are taken off; stalled neighbourhoods lose their worst.
             out = ~active
-            group_best = np.array([pbest_f[groups == g].max() for g in range(n_groups)])
+            group_best = np.maximum.reduceat(pbest_f, group_starts)
             group_hist.append(group_best)
             if len(group_hist) > options.stall_iterations:
                 gain = group_best - group_hist[-1 - options.stall_iterations]
