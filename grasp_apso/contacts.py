@@ -342,8 +342,9 @@ def decode(
     reuse, changed : DecodedGrasps of P particles and (P, 5) bool, optional
         Re-decode only the ``changed`` fingers (GRG's verification test regenerates single
         fingers): ``reuse`` is the decoding of the same particles in which only those
-        fingers had other values; every finger of ``reuse`` is kept except these, and the
-        collisions between fingers are checked again. The result equals a full decode.
+        fingers had other values (and the same ``wrist_position``); every finger of
+        ``reuse`` is kept except these, and the collisions between fingers are checked
+        again. The result equals a full decode (tested).
 
     Returns
     -------
