@@ -43,8 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import quality_kernels
 from .contacts import DecodedGrasps, GraspModel
-from .quality import antipodal_score, force_balance_residual, normal_wrench_residual, polygon_shape_q
+from .quality import COINCIDENT_ATOL, COINCIDENT_RTOL
 
 W_SHAPE = 0.20
 W_BALANCE = 0.15
@@ -87,27 +88,19 @@ def evaluate(
     nc = mask.sum(axis=1)
     legal = decoded.legal(model.settings.max_penetration)
     active = legal & (nc >= 2)
-    com = np.asarray(model.obj.center_of_mass, dtype=float)
-    pts, nrm = decoded.contact_points, decoded.contact_normals
-
-    shape = np.full(len(nc), np.nan)
-    balance = np.full(len(nc), np.nan)
-    equilibrium = np.full(len(nc), np.nan)
-    poly = active & (nc >= 3)
-    if poly.any():
-        shape[poly] = 1.0 - polygon_shape_q(pts[poly], mask[poly])
-    pair = active & (nc == 2)
-    if pair.any():
-        shape[pair] = 0.5 * antipodal_score(pts[pair], nrm[pair], mask[pair])
-    if active.any():
-        p, m, n = pts[active], mask[active], nrm[active]
-        balance[active] = 1.0 - force_balance_residual(p, m, com)
-        residual = normal_wrench_residual(
-            p, n, m, com, float(model.obj.characteristic_radius), min_share=MIN_SHARE
-        )
-        # Collinear contacts balance without holding: scale by the polygon's regularity.
-        regular = np.where(nc[active] >= 3, np.clip(shape[active] / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
-        equilibrium[active] = (1.0 - np.minimum(residual, 1.0)) * regular
+    n = len(nc)
+    shape, balance, residual = np.empty(n), np.empty(n), np.empty(n)
+    # Every term in one compiled loop over the particles (the functions of
+    # grasp_apso.quality compute the same, with their input checks).
+    quality_kernels.fitness_terms(
+        np.ascontiguousarray(decoded.contact_points), np.ascontiguousarray(decoded.contact_normals),
+        np.ascontiguousarray(mask), active, np.asarray(model.obj.center_of_mass, dtype=np.float64),
+        float(model.obj.characteristic_radius), MIN_SHARE, COINCIDENT_RTOL, COINCIDENT_ATOL,
+        shape, balance, residual,
+    )
+    # Collinear contacts balance without holding: scale by the polygon's regularity.
+    regular = np.where(nc >= 3, np.clip(shape / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
+    equilibrium = (1.0 - np.minimum(residual, 1.0)) * regular
     count = (nc - 1) / 4.0
     score = (
         W_SHAPE * shape + W_BALANCE * balance + W_EQUILIBRIUM * equilibrium

@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull
 
-from . import kernels
+from . import quality_kernels
 
 try:  # scipy >= 1.8 exposes QhullError here
     from scipy.spatial import QhullError
@@ -71,14 +71,15 @@ __all__ = [
     "epsilon_quality_batch",
     "FORCE_CLOSURE_EPS",
     "COINCIDENT_RTOL",
+    "COINCIDENT_ATOL",
 ]
 
 #: Epsilon values at or below this are treated as 0 (not force closure).
 FORCE_CLOSURE_EPS: float = 1e-9
 #: Contacts closer than this fraction of the polygon size (in the fitted plane) are coincident.
 COINCIDENT_RTOL: float = 1e-9
-#: Absolute size (m) below which a contact set is a single point.
-_COINCIDENT_ATOL: float = 1e-12
+#: Absolute size (m) below which a contact set is a single point (or a pair has no line).
+COINCIDENT_ATOL: float = 1e-12
 
 
 # --------------------------------------------------------------------------------------------
@@ -195,30 +196,11 @@ def polygon_shape_q(points: ArrayLike, mask: ArrayLike) -> NDArray[np.float64]:
         point is not finite.
     """
     pts, msk = _check_batch(points, mask)
-    n_part, n_fing = msk.shape
-    nc = msk.sum(axis=1)
-    q = np.full(n_part, np.nan)
-    sel = np.flatnonzero(nc >= 3)
-    if sel.size == 0:
-        return q
-
-    m = msk[sel]  # (G, F)
-    n = nc[sel]  # (G,)
-    x = _masked(pts[sel], m, "points")  # (G, F, 3), zeros where masked
-    centroid = x.sum(axis=1) / n[:, None]
-    x = np.where(m[..., None], x - centroid[:, None, :], 0.0)
-
-    # Best-fit plane: the two largest principal directions of the scatter matrix.
-    scatter = np.matmul(x.transpose(0, 2, 1), x)  # (G, 3, 3)
-    _, vecs = np.linalg.eigh(scatter)  # ascending eigenvalues
-    xy = np.matmul(x, vecs[:, :, :0:-1])  # (G, F, 2): coordinates along e3, e2
-
-    # Order by angle around the centroid, internal angles, coincident contacts: a
-    # compiled loop over the particles.
-    qg = np.empty(len(sel))
-    kernels.polygon_deviation(np.ascontiguousarray(xy), np.ascontiguousarray(m), COINCIDENT_RTOL,
-                              _COINCIDENT_ATOL, qg)
-    q[sel] = qg
+    sel = msk.sum(axis=1) >= 3
+    _masked(pts[sel], msk[sel], "points")  # the polygons' points must be finite
+    q = np.empty(msk.shape[0])
+    quality_kernels.polygon_batch(np.ascontiguousarray(pts), np.ascontiguousarray(msk), COINCIDENT_RTOL,
+                                  COINCIDENT_ATOL, q)
     return q
 
 
@@ -261,28 +243,14 @@ def antipodal_score(points: ArrayLike, normals: ArrayLike, mask: ArrayLike) -> N
     """
     pts, msk = _check_batch(points, mask)
     nrm = _check_normals(normals, pts.shape)
-    nc = msk.sum(axis=1)
-    out = np.full(msk.shape[0], np.nan)
-    sel = np.flatnonzero(nc == 2)
-    if sel.size == 0:
-        return out
-    m = msk[sel]
-    idx = np.argsort(~m, axis=1, kind="stable")[:, :2, None]  # the two in-contact slots
-    p = np.take_along_axis(_masked(pts[sel], m, "points"), idx, axis=1)  # (G, 2, 3)
-    n = np.take_along_axis(_masked(nrm[sel], m, "normals"), idx, axis=1)
-    n_len = np.linalg.norm(n, axis=-1)
-    if np.any(n_len <= 0.0):
+    sel = msk.sum(axis=1) == 2
+    _masked(pts[sel], msk[sel], "points")
+    n = _masked(nrm[sel], msk[sel], "normals")
+    if np.any(np.linalg.norm(n, axis=-1)[msk[sel]] <= 0.0):
         raise ValueError("normals: zero-length normal at an in-contact finger")
-    n = n / n_len[..., None]
-    line = p[:, 1] - p[:, 0]
-    length = np.linalg.norm(line, axis=-1)
-    ok = length > _COINCIDENT_ATOL
-    u = line / np.where(ok, length, 1.0)[:, None]
-    opposed = 0.5 * (1.0 - np.einsum("gi,gi->g", n[:, 0], n[:, 1]))
-    along1 = np.maximum(0.0, -np.einsum("gi,gi->g", n[:, 0], u))
-    along2 = np.maximum(0.0, np.einsum("gi,gi->g", n[:, 1], u))
-    score = np.clip((opposed + along1 + along2) / 3.0, 0.0, 1.0)
-    out[sel] = np.where(ok, score, 0.0)
+    out = np.empty(msk.shape[0])
+    quality_kernels.antipodal_batch(np.ascontiguousarray(pts), np.ascontiguousarray(nrm), np.ascontiguousarray(msk),
+                                    COINCIDENT_ATOL, out)
     return out
 
 
@@ -323,16 +291,10 @@ def force_balance_residual(
     """
     pts, msk = _check_batch(points, mask)
     c = _check_com(com)
-    nc = msk.sum(axis=1)
-    d = np.where(msk[..., None], c - pts, 0.0)
-    if not np.isfinite(d).all():
-        raise ValueError("points: values of in-contact fingers must be finite")
-    dist = np.sqrt(np.einsum("pfi,pfi->pf", d, d))
-    v = d / np.where(dist > 0.0, dist, 1.0)[..., None]  # zero rows stay zero
-    total = v.sum(axis=1)
-    res = np.sqrt(np.einsum("pi,pi->p", total, total)) / np.maximum(nc, 1)
-    res = np.where(nc > 0, np.clip(res, 0.0, 1.0), 1.0)
-    return res
+    _masked(pts, msk, "points")
+    out = np.empty(msk.shape[0])
+    quality_kernels.balance_batch(np.ascontiguousarray(pts), np.ascontiguousarray(msk), c, out)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -523,8 +485,8 @@ def normal_wrench_residual(
     friction and three or more non-collinear contacts such a grasp is force closure
     (the squeeze lies strictly inside every cone). It grows as the best squeeze leaves
     a net wrench. Exact: the min-norm point of at most F points is found by enumerating
-    the faces spanned by subsets of contacts (26 of two or more for F = 5; a compiled
-    loop, :func:`grasp_apso.kernels.min_norm_hull_distance`).
+    the faces spanned by subsets of contacts (26 of two or more for F = 5; compiled,
+    :func:`grasp_apso.quality_kernels.wrench_batch`).
 
     Parameters
     ----------
@@ -550,21 +512,11 @@ def normal_wrench_residual(
     com = _check_com(com)
     if not torque_scale > 0:
         raise ValueError(f"torque_scale: expected > 0, got {torque_scale!r}")
-    force = -np.where(mask[..., None], normals, 0.0)
-    arm = np.where(mask[..., None], points, 0.0) - com
-    wrench = np.empty(points.shape[:-1] + (6,))  # (P, F, 6): force, torque / torque_scale
-    wrench[..., :3] = force
-    # arm x force by components: np.cross costs more than the rest of this function.
-    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):
-        wrench[..., 3 + i] = (arm[..., j] * force[..., k] - arm[..., k] * force[..., j]) / torque_scale
     if not 0.0 <= min_share < 1.0:
         raise ValueError(f"min_share: expected [0, 1), got {min_share!r}")
-    if min_share > 0.0:
-        nc = np.maximum(mask.sum(axis=1), 1)[:, None, None]
-        delta = min_share / nc
-        total = (wrench * mask[..., None]).sum(axis=1, keepdims=True)
-        wrench = (1.0 - nc * delta) * wrench + delta * total
+    _masked(points, mask, "points")
+    _masked(normals, mask, "normals")
     best = np.empty(mask.shape[0])
-    kernels.min_norm_hull_distance(np.ascontiguousarray(wrench, dtype=np.float64),
-                                   np.ascontiguousarray(mask), best)
+    quality_kernels.wrench_batch(np.ascontiguousarray(points), np.ascontiguousarray(normals),
+                                 np.ascontiguousarray(mask), com, float(torque_scale), float(min_share), best)
     return best
