@@ -110,8 +110,11 @@ DEFAULT_MAX_TRIANGLES: int = 200_000
 #: Triangles with an area at or below this (m^2) count as zero-area.
 _ZERO_AREA: float = 1e-14
 
-#: Hull vertices above which the oriented-box orientation is searched on a subset.
+#: Hull vertices above which the oriented-box orientation is searched on a subset of
+#: ``_OBB_SUBSET`` of them (trimesh's search costs about 0.16 s for 2,000 points, 0.04 s
+#: for 500; the box is then measured on all of them).
 _OBB_MAX_POINTS: int = 2000
+_OBB_SUBSET: int = 500
 
 
 class ObjectError(ValueError):
@@ -511,7 +514,8 @@ def _oriented_box_axes(mesh: trimesh.Trimesh, hull_points: np.ndarray) -> np.nda
 
     Its cost grows with the hull size (about 5 s for a 100,000-vertex hull), so for
     hulls of more than :data:`_OBB_MAX_POINTS` vertices the orientation is searched on
-    an evenly strided subset of them; the caller measures the box on all of them.
+    an evenly strided subset of :data:`_OBB_SUBSET` of them; the caller measures the box
+    on all of them.
 
     Parameters
     ----------
@@ -529,7 +533,7 @@ def _oriented_box_axes(mesh: trimesh.Trimesh, hull_points: np.ndarray) -> np.nda
         if len(hull_points) <= _OBB_MAX_POINTS:
             to_origin, _ = trimesh.bounds.oriented_bounds(mesh)
         else:
-            subset = np.linspace(0, len(hull_points) - 1, _OBB_MAX_POINTS).astype(np.int64)
+            subset = np.linspace(0, len(hull_points) - 1, _OBB_SUBSET).astype(np.int64)
             to_origin, _ = trimesh.bounds.oriented_bounds(hull_points[subset])
     except Exception:  # qhull / coplanar-subset failures: fall back to other candidates
         return None
