@@ -240,9 +240,10 @@ class GuidedGenerator:
     Attributes
     ----------
     refill : int
-        Smallest number of particles a reservoir refill generates: a decode of a few
-        particles costs nearly as much as one of 60 (numpy call overhead), so refills
-        come in batches (measured: plan time -10 to -20 %, same fitness).
+        Smallest number of particles a reservoir refill generates: a decode of 6
+        particles costs a quarter of one of 60 (per-call overhead), so refills come in
+        batches (measured with the numpy decoder, where 6 cost nearly as much as 60:
+        plan time -10 to -20 %, same fitness).
     evaluations : int
         Particle decodes spent so far (each candidate decode counts as one).
     """
