@@ -286,7 +286,8 @@ def plan(
 
 
 def warm_up() -> float:
-    """Load the compiled kernels (:mod:`grasp_apso.kernels`) before the first plan.
+    """Load the compiled kernels (:mod:`grasp_apso.kernels`, :mod:`grasp_apso.quality_kernels`)
+    before the first plan.
 
     They are numba functions cached on disk: a process loads them on its first use,
     about 0.3 s, and once after an install compiles them, about 5 s. This plans a tiny
