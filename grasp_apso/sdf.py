@@ -73,9 +73,9 @@ class SignedDistanceGrid:
         (...) float, m (negative inside)
         """
         shape = np.shape(x)
+        if not shape == np.shape(y) == np.shape(z):
+            raise ValueError(f"x, y, z: expected the same shape, got {shape}, {np.shape(y)}, {np.shape(z)}")
         x, y, z = (np.ascontiguousarray(v, dtype=np.float64).reshape(-1) for v in (x, y, z))
-        if not x.shape == y.shape == z.shape:
-            raise ValueError(f"x, y, z: expected the same shape, got {np.shape(x)}, {np.shape(y)}, {np.shape(z)}")
         out = np.empty(x.shape[0])
         kernels.grid_distances(self._values64, self._origin64, float(self.spacing), x, y, z, out)
         return out.reshape(shape)
