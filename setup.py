@@ -42,8 +42,8 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'planner_node = grasp_apso.node:main',
-            'grasp_apso_plan = grasp_apso.cli:main',
+            'planner_node = grasp_apso.ros.node:main',
+            'grasp_apso_plan = grasp_apso.tools.cli:main',
         ],
     },
 )

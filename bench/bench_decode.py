@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Benchmark of the geometric core: object preparation (signed-distance grid, cold) and
-particle decoding (``grasp_apso.contacts.decode``) on 60-particle batches.
+particle decoding (``grasp_apso.geometry.decoder.decode``) on 60-particle batches.
 
 Rerunnable, not a test::
 
@@ -10,7 +10,7 @@ Rerunnable, not a test::
 For each object:
 
 * prep: ``make_grasp_model(hand, obj)`` with the grid cache cleared
-  (``grasp_apso.sdf._CACHE``), i.e. the cold grid build a first plan on a new mesh pays;
+  (``grasp_apso.geometry.sdf._CACHE``), i.e. the cold grid build a first plan on a new mesh pays;
   the best of ``--prep-runs`` runs (least disturbed by other processes);
 * decode: ``decode(model, x)`` on GRG-like batches (random wrist angles and pivots, flexion
   pre-shapes in the lower third of their range, standoff offset 0..2 cm; seeded), after
@@ -40,9 +40,10 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
 from grasp_apso import sdf as sdf_module  # noqa: E402
-from grasp_apso.contacts import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model  # noqa: E402
-from grasp_apso.hand import load_hand  # noqa: E402
-from grasp_apso.objects import BUILTIN_OBJECTS, builtin, from_arrays  # noqa: E402
+from grasp_apso.geometry.decoder import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model  # noqa: E402
+from grasp_apso.model.hand import load_hand  # noqa: E402
+from grasp_apso.model.objects import from_arrays
+from grasp_apso.model.builtin import BUILTIN_OBJECTS, builtin# noqa: E402
 
 FLEXION_COLUMNS = [3 * f + j for f in range(5) for j in (0, 1)]
 CAPSULE_NAME = "capsule_10k"
@@ -159,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average after: {load_after[0]:.2f} (other processes share the {os.cpu_count()} cores)")
 
     result = {
-        "benchmark": "grasp_apso.contacts.decode",
+        "benchmark": "grasp_apso.geometry.decoder.decode",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "git_commit": git_commit(),
         "python": platform.python_version(),

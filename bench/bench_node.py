@@ -1,6 +1,6 @@
 """Benchmark of the grasp_apso node: service overhead and a memory soak.
 
-The node runs in its own process (``python -m grasp_apso.node``, DDS domain of its own,
+The node runs in its own process (``python -m grasp_apso.ros.node``, DDS domain of its own,
 discovery on localhost); this process is the client.
 
 1. Service overhead: the round trip of ``~/plan_grasp`` measured by the client, minus the
@@ -50,7 +50,7 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 
 from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 
-from grasp_apso.conversions import arrays_to_mesh, arrays_to_packed, mesh_to_arrays, packed_mesh_to_arrays  # noqa: E402
+from grasp_apso.ros.conversions import arrays_to_mesh, arrays_to_packed, mesh_to_arrays, packed_mesh_to_arrays  # noqa: E402
 
 RESULTS = os.path.join(ROOT, 'bench', 'results', 'node.json')
 TARGET_OVERHEAD_MS = 20.0
@@ -167,7 +167,7 @@ def main(argv=None) -> int:
     log_dir = tempfile.mkdtemp(prefix='grasp_apso_bench_')
     env['ROS_LOG_DIR'] = log_dir
     node_log = open(os.path.join(log_dir, 'node.log'), 'w')
-    node = subprocess.Popen([sys.executable, '-m', 'grasp_apso.node'], cwd=ROOT, env=env,
+    node = subprocess.Popen([sys.executable, '-m', 'grasp_apso.ros.node'], cwd=ROOT, env=env,
                             stdout=node_log, stderr=subprocess.STDOUT)
     client = None
     try:

@@ -7,7 +7,7 @@ Rerunnable, not a test::
     .venv/bin/python bench/bench_planner.py               # full (about 2-3 minutes)
     .venv/bin/python bench/bench_planner.py --quick       # a few seconds, small sweeps
 
-Measures (all with ``grasp_apso.planner.plan``, ``GraspResult.planning_time`` and
+Measures (all with ``grasp_apso.search.planner.plan``, ``GraspResult.planning_time`` and
 ``preparation_time``; seeds 0..N-1):
 
 * per object: APSO and the simple PSO, np = 60, nit = 50, geometry prepared beforehand;
@@ -16,7 +16,7 @@ Measures (all with ``grasp_apso.planner.plan``, ``GraspResult.planning_time`` an
   sphere, median of ``--repeats`` plans;
 * mesh triangles, 1k to 100k: spheres of 5 cm diameter (trimesh icospheres with 3..6
   subdivisions and a 9,600-triangle UV sphere); object construction (validation),
-  preparation (signed-distance grid, ``grasp_apso.sdf._CACHE`` cleared first), the first
+  preparation (signed-distance grid, ``grasp_apso.geometry.sdf._CACHE`` cleared first), the first
   plan (includes the python-fcl BVH build) and later plans, timed separately.
 
 Prints the tables (Markdown) and writes ``bench/results/planner.json`` and

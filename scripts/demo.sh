@@ -76,11 +76,11 @@ trap 'exit 130' INT
 trap 'exit 143' TERM
 
 say "starting the node: planner_node (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, log: $NODE_LOG)"
-"$PY" -m grasp_apso.node --ros-args --params-file "$ROOT/config/grasp_apso.yaml" >"$NODE_LOG" 2>&1 &
+"$PY" -m grasp_apso.ros.node --ros-args --params-file "$ROOT/config/grasp_apso.yaml" >"$NODE_LOG" 2>&1 &
 NODE_PID=$!
 
 client_status=0
-"$PY" -m grasp_apso.demo_client "$OBJECT" --wait 30 "$@" || client_status=$?
+"$PY" -m grasp_apso.ros.demo_client "$OBJECT" --wait 30 "$@" || client_status=$?
 if ! kill -0 "$NODE_PID" 2>/dev/null; then
   say "error: the node is not running any more"
   exit 1

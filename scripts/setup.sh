@@ -200,7 +200,7 @@ say "6/6 smoke test"
 # -I: the installed grasp_apso, not the source tree in the working directory. Planning a
 # tiny grasp compiles the numba kernels into the installed package's cache (about 5 s
 # after an install, then about 0.5 s), so the node's first request does not.
-if ! "$VPY" -I -c "import rclpy; from grasp_apso_interfaces.srv import PlanGrasp; from grasp_apso_interfaces.msg import GraspProgress; from grasp_apso_interfaces.action import PlanGrasp; from grasp_apso.planner import warm_up; warm_up()" 2>"$LOG_DIR/smoke.log"; then
+if ! "$VPY" -I -c "import rclpy; from grasp_apso_interfaces.srv import PlanGrasp; from grasp_apso_interfaces.msg import GraspProgress; from grasp_apso_interfaces.action import PlanGrasp; from grasp_apso.search.planner import warm_up; warm_up()" 2>"$LOG_DIR/smoke.log"; then
   cat "$LOG_DIR/smoke.log" >&2
   rm -rf "$STAMPS"   # make the next run redo every step
   fail "smoke test failed: rclpy / grasp_apso_interfaces do not import, or the installed planner cannot plan (stamps cleared; re-run, or 'make clean distclean')"

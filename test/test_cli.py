@@ -1,4 +1,4 @@
-"""Command line ``grasp_apso_plan`` (grasp_apso.cli) and its pictures (grasp_apso.plotting).
+"""Command line ``grasp_apso_plan`` (grasp_apso.tools.cli) and its pictures (grasp_apso.tools.plotting).
 
 The real planner runs with small swarms (12 particles, 6 iterations) to stay fast.
 """
@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso import cli, plotting
-from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand
+from grasp_apso.tools import cli
+from grasp_apso.tools import plotting
+from grasp_apso.model.hand import FINGER_NAMES, JOINT_NAMES, load_hand
 
 SMALL = ["--particles", "12", "--iterations", "6"]
 HAND = load_hand()
@@ -195,9 +196,9 @@ def test_mesh_file_and_mesh_scale(tmp_path, capsys):
 
 
 def test_module_runs_as_a_script_with_json_on_stdout(tmp_path):
-    """One real process: ``python -m grasp_apso.cli`` (what the console script calls)."""
+    """One real process: ``python -m grasp_apso.tools.cli`` (what the console script calls)."""
     proc = subprocess.run(
-        [sys.executable, "-m", "grasp_apso.cli", "--object", "fish", *SMALL, "--seed", "0",
+        [sys.executable, "-m", "grasp_apso.tools.cli", "--object", "fish", *SMALL, "--seed", "0",
          "--out", str(tmp_path), "--json", "-"],
         capture_output=True, text=True, timeout=240, cwd=str(tmp_path),
     )

@@ -1,5 +1,5 @@
-"""Tests for grasp_apso.contacts (decoding particles: wrist placement, closing the fingers,
-contacts) and grasp_apso.collision, on the built-in objects.
+"""Tests for grasp_apso.geometry.decoder (decoding particles: wrist placement, closing the fingers,
+contacts) and grasp_apso.geometry.collision, on the built-in objects.
 
 Geometry is checked against analytic shapes (the built-in sphere and cube are centred on
 their centre of mass) and against python-fcl, not against the signed-distance grid the
@@ -15,12 +15,13 @@ import math
 import numpy as np
 import pytest
 
-from grasp_apso import collision
-from grasp_apso import contacts as contacts_module
-from grasp_apso.collision import finger_collisions, segment_distances, verify_with_fcl
-from grasp_apso.contacts import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model, wrist_transforms
-from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand
-from grasp_apso.objects import CUBE_EDGE, SPHERE_DIAMETER, builtin
+from grasp_apso.geometry import collision
+from grasp_apso.geometry import decoder as contacts_module
+from grasp_apso.geometry.collision import finger_collisions, segment_distances, verify_with_fcl
+from grasp_apso.geometry.decoder import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model, wrist_transforms
+from grasp_apso.model.hand import FINGER_NAMES, JOINT_NAMES, load_hand
+from grasp_apso.model.shapes import CUBE_EDGE, SPHERE_DIAMETER
+from grasp_apso.model.builtin import builtin
 
 R_SPHERE = SPHERE_DIAMETER / 2  # 0.025
 HALF_CUBE = CUBE_EDGE / 2  # 0.035

@@ -1,4 +1,4 @@
-"""grasp_apso.conversions: messages <-> numpy, with real planner results (no DDS)."""
+"""grasp_apso.ros.conversions: messages <-> numpy, with real planner results (no DDS)."""
 import math
 
 import numpy as np
@@ -14,21 +14,21 @@ from std_msgs.msg import Header  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
 from grasp_apso import conversions, objects  # noqa: E402
-from grasp_apso.hand import JOINT_NAMES, load_hand  # noqa: E402
-from grasp_apso.objects import ObjectError  # noqa: E402
-from grasp_apso.planner import IterationStats, PlanOptions, plan  # noqa: E402
+from grasp_apso.model.hand import JOINT_NAMES, load_hand  # noqa: E402
+from grasp_apso.errors import ObjectError# noqa: E402
+from grasp_apso.search.planner import IterationStats, PlanOptions, plan  # noqa: E402
 
 
 @pytest.fixture(scope='module')
 def planned():
-    pose = objects.pose_to_matrix((0.4, -0.1, 0.8), (0.0, 0.0, math.sin(0.3), math.cos(0.3)))
-    result = plan(objects.builtin('cube'), pose=pose, options=PlanOptions(particles=20, iterations=4),
+    pose = poses.pose_to_matrix((0.4, -0.1, 0.8), (0.0, 0.0, math.sin(0.3), math.cos(0.3)))
+    result = plan(builtin_objects.builtin('cube'), pose=pose, options=PlanOptions(particles=20, iterations=4),
                   rng=np.random.default_rng(5))
     return pose, result
 
 
 def test_mesh_roundtrip_through_serialisation():
-    sphere = objects.builtin('sphere')
+    sphere = builtin_objects.builtin('sphere')
     msg = conversions.arrays_to_mesh(sphere.mesh.vertices, sphere.mesh.faces)
     back = deserialize_message(serialize_message(msg), type(msg))
     vertices, triangles = conversions.mesh_to_arrays(back)
@@ -38,7 +38,7 @@ def test_mesh_roundtrip_through_serialisation():
 
 
 def test_packed_mesh_roundtrip_through_a_serialised_request():
-    fish = objects.builtin('fish')
+    fish = builtin_objects.builtin('fish')
     req = PlanGrasp.Request()
     req.mesh_vertices, req.mesh_triangles = conversions.arrays_to_packed(fish.mesh.vertices, fish.mesh.faces)
     back = deserialize_message(serialize_message(req), PlanGrasp.Request)
@@ -110,7 +110,7 @@ def test_fill_result(planned, msg_type):
     assert msg.wrist_pose.header.frame_id == 'table'
     p = msg.wrist_pose.pose.position
     assert np.allclose([p.x, p.y, p.z], result.wrist_pose[:3, 3])
-    back = objects.pose_to_matrix([p.x, p.y, p.z], [getattr(msg.wrist_pose.pose.orientation, a) for a in 'xyzw'])
+    back = poses.pose_to_matrix([p.x, p.y, p.z], [getattr(msg.wrist_pose.pose.orientation, a) for a in 'xyzw'])
     assert np.allclose(back, result.wrist_pose, atol=1e-9)
     assert len(msg.contact_points) == result.n_contacts == len(msg.contact_fingers)
     assert msg.contact_fingers == [c.finger for c in result.contacts]

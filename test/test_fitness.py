@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from grasp_apso import fitness as F
-from grasp_apso.contacts import DecodedGrasps
-from grasp_apso.hand import load_hand
-from grasp_apso.objects import builtin
-from grasp_apso.planner import prepare
-from grasp_apso.quality import normal_wrench_residual
+from grasp_apso.quality import fitness as F
+from grasp_apso.geometry.decoder import DecodedGrasps
+from grasp_apso.model.hand import load_hand
+from grasp_apso.model.builtin import builtin
+from grasp_apso.search.planner import prepare
+from grasp_apso.quality.measures.measures import normal_wrench_residual
 
 RADIUS = 0.025
 

@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso.contacts import decode
-from grasp_apso.grg import (
+from grasp_apso.geometry.decoder import decode
+from grasp_apso.search.grg import (
     GuidedGenerator, PreshapeRanges, classify_shape, rotation_to_wrist_angles, sample_particles,
 )
-from grasp_apso.hand import load_hand, wrist_rotation
-from grasp_apso.objects import builtin, from_arrays
-from grasp_apso.planner import prepare
+from grasp_apso.model.hand import load_hand, wrist_rotation
+from grasp_apso.model.objects import from_arrays
+from grasp_apso.model.builtin import builtin
+from grasp_apso.search.planner import prepare
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""Tests for grasp_apso.hand: forward kinematics against poses computed by hand from the
+"""Tests for grasp_apso.model.hand: forward kinematics against poses computed by hand from the
 YAML numbers, the coupling of eq. 1, batched vs single evaluation, the planar shortcut
 (planar_chain + flexion_planes) against the DH frames, Table 2 limits, validation of
 configurations and of hand description files, and the wrist rotation convention."""
@@ -14,7 +14,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from grasp_apso.hand import (
+from grasp_apso.model.hand import (
     FINGER_NAMES,
     JOINT_NAMES,
     HandModel,

@@ -29,9 +29,9 @@ from node_helpers import (  # noqa: E402
     DISCOVERY_TIMEOUT, ProgressCounter, SpinningNode, identity_pose, table_pose, wait_for, wait_future)
 
 from grasp_apso import objects  # noqa: E402
-from grasp_apso.conversions import arrays_to_mesh, arrays_to_packed  # noqa: E402
-from grasp_apso.hand import FINGER_NAMES, JOINT_NAMES, load_hand  # noqa: E402
-from grasp_apso.node import PARAMETER_NAMES, PARAMETERS, GraspPlannerNode  # noqa: E402
+from grasp_apso.ros.conversions import arrays_to_mesh, arrays_to_packed  # noqa: E402
+from grasp_apso.model.hand import FINGER_NAMES, JOINT_NAMES, load_hand  # noqa: E402
+from grasp_apso.ros.node import PARAMETER_NAMES, PARAMETERS, GraspPlannerNode  # noqa: E402
 
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
 
@@ -80,7 +80,7 @@ class Harness:
 
 def sphere_request(pose=None, packed=False, **fields):
     """A request with the built-in sphere sent inline, as shape_msgs/Mesh or packed."""
-    sphere = objects.builtin('sphere')
+    sphere = builtin_objects.builtin('sphere')
     req = PlanGrasp.Request()
     if packed:
         req.mesh_vertices, req.mesh_triangles = arrays_to_packed(sphere.mesh.vertices, sphere.mesh.faces)
@@ -109,7 +109,7 @@ def mesh_dir(tmp_path_factory):
     allowed.mkdir()
     outside = root / 'outside'
     outside.mkdir()
-    box = objects.builtin('cube').mesh.copy()
+    box = builtin_objects.builtin('cube').mesh.copy()
     box.export(str(allowed / 'cube.stl'))
     box.export(str(outside / 'secret.stl'))
     (allowed / 'garbage.stl').write_bytes(b'\x00\x01 this is not an STL file at all \xff' * 3)
@@ -188,7 +188,7 @@ def test_mesh_request_in_table_frame(ros, packed):
     assert set(res.contact_fingers) <= set(FINGER_NAMES)
     points = np.array([[p.x, p.y, p.z] for p in res.contact_points])
     in_object = (points - matrix[:3, 3]) @ matrix[:3, :3]
-    distance = _distance_to_surface(objects.builtin('sphere').mesh, in_object)
+    distance = _distance_to_surface(builtin_objects.builtin('sphere').mesh, in_object)
     assert np.all(distance < 0.003), distance
     normals = np.array([[n.x, n.y, n.z] for n in res.contact_normals])
     assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
@@ -554,7 +554,7 @@ def _goal(name='sphere', **fields):
 
 def test_action_goal_with_a_packed_mesh(ros, action_client):
     """The action goal goes through the same parser: a packed mesh plans, a bad one aborts."""
-    sphere = objects.builtin('sphere')
+    sphere = builtin_objects.builtin('sphere')
     goal = _goal('', iterations=3)
     goal.mesh_vertices, goal.mesh_triangles = arrays_to_packed(sphere.mesh.vertices, sphere.mesh.faces)
     goal_handle = ros.wait(action_client.send_goal_async(goal), 10.0)

@@ -1,4 +1,4 @@
-"""The node in its own process (``python -m grasp_apso.node`` with the shipped parameter
+"""The node in its own process (``python -m grasp_apso.ros.node`` with the shipped parameter
 file), a client in this process and a progress subscriber in a third process.
 
 Checks the result and the progress count seen by the other process, then that SIGINT
@@ -19,8 +19,8 @@ from node_helpers import (  # noqa: E402
     DISCOVERY_TIMEOUT, PYTHON, REPO_ROOT, SUBSCRIBER_SCRIPT, LineReader, identity_pose, ros_env,
     wait_future)
 
-from grasp_apso.hand import JOINT_NAMES  # noqa: E402
-from grasp_apso.node import PARAMETER_NAMES  # noqa: E402
+from grasp_apso.model.hand import JOINT_NAMES  # noqa: E402
+from grasp_apso.ros.node import PARAMETER_NAMES  # noqa: E402
 
 PARAMS_FILE = os.path.join(REPO_ROOT, 'config', 'grasp_apso.yaml')
 SERVICE = '/grasp_apso/plan_grasp'
@@ -38,7 +38,7 @@ def test_parameter_file_lists_every_parameter():
 
 def _start_node(*extra_args):
     return subprocess.Popen(
-        [PYTHON, '-m', 'grasp_apso.node', '--ros-args', '--params-file', PARAMS_FILE, *extra_args],
+        [PYTHON, '-m', 'grasp_apso.ros.node', '--ros-args', '--params-file', PARAMS_FILE, *extra_args],
         cwd=REPO_ROOT, env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 

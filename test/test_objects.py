@@ -1,4 +1,4 @@
-"""Tests of grasp_apso.objects: validation, built-in objects, mesh files, poses."""
+"""Tests of grasp_apso.model.objects: validation, built-in objects, mesh files, poses."""
 
 from __future__ import annotations
 
@@ -8,19 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso import mesh_files, objects
-from grasp_apso.objects import (
-    BUILTIN_OBJECTS,
-    GraspObject,
-    ObjectError,
-    builtin,
-    from_arrays,
-    from_file,
-    matrix_to_pose,
-    pose_to_matrix,
-    transform_points,
-    transform_vectors,
-)
+from grasp_apso.model import mesh_files
+from grasp_apso.model import objects
+from grasp_apso.model.objects import GraspObject, from_arrays
+from grasp_apso.model.builtin import BUILTIN_OBJECTS, builtin
+from grasp_apso.errors import ObjectError
+from grasp_apso.model.mesh_files import from_file
+from grasp_apso.model.poses import matrix_to_pose, pose_to_matrix, transform_points, transform_vectors
 
 MM = 1e-3
 

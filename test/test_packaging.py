@@ -46,8 +46,8 @@ def test_installed_distribution():
     dist = importlib.metadata.distribution('grasp_apso')
     assert dist.version == grasp_apso.__version__
     scripts = {ep.name: ep.value for ep in dist.entry_points if ep.group == 'console_scripts'}
-    assert scripts == {'planner_node': 'grasp_apso.node:main',
-                       'grasp_apso_plan': 'grasp_apso.cli:main'}
+    assert scripts == {'planner_node': 'grasp_apso.ros.node:main',
+                       'grasp_apso_plan': 'grasp_apso.tools.cli:main'}
     # pip (RECORD) or colcon (egg-info SOURCES.txt) file lists; the share/ files are
     # checked through the ament index below.
     files = [str(f) for f in dist.files or []]

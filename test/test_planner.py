@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso.hand import JOINT_NAMES, load_hand
-from grasp_apso.objects import builtin, from_arrays, pose_to_matrix
-from grasp_apso.planner import PlanOptions, PlanningError, plan
-from grasp_apso.swarm import SwarmOptions, run_swarm
+from grasp_apso.model.hand import JOINT_NAMES, load_hand
+from grasp_apso.model.objects import from_arrays
+from grasp_apso.model.builtin import builtin
+from grasp_apso.model.poses import pose_to_matrix
+from grasp_apso.search.planner import PlanOptions, PlanningError, plan
+from grasp_apso.search.swarm import SwarmOptions, run_swarm
 
 SMALL = dict(particles=20, iterations=8)
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -175,7 +177,7 @@ def test_warm_up_loads_every_kernel_a_plan_uses():
     script = (
         "from numba.core.registry import CPUDispatcher\n"
         "from grasp_apso import kernels, quality_kernels\n"
-        "from grasp_apso.planner import warm_up\n"
+        "from grasp_apso.search.planner import warm_up\n"
         "seconds = warm_up()\n"
         "assert seconds > 0.0\n"
         "print(sorted(n for m in (kernels, quality_kernels) for n, f in vars(m).items()\n"

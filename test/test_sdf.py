@@ -1,4 +1,4 @@
-"""Tests for grasp_apso.sdf: the signed distance grid against analytic distances of a
+"""Tests for grasp_apso.geometry.sdf: the signed distance grid against analytic distances of a
 sphere, a box and a cylinder (accuracy in the band where decisions are made, sign
 everywhere, far field), gradient and projection onto the surface, determinism and the
 cache."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso import sdf as sdf_module
-from grasp_apso.sdf import SignedDistanceGrid, build_sdf_grid, cached_sdf_grid
+from grasp_apso.geometry import sdf as sdf_module
+from grasp_apso.geometry.sdf import SignedDistanceGrid, build_sdf_grid, cached_sdf_grid
 
 R_SPHERE = 0.025
 BOX_EDGE = 0.07

@@ -8,8 +8,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from .. import objects
 
+from ..model import builtin as builtin_objects
 DEFAULT_OUT = os.path.join("docs", "experiment")
 OBJECT_LABELS = {
     "sphere": "sphere (diameter 5 cm)",
@@ -68,7 +68,7 @@ class SpeedConfig:
 @dataclass(frozen=True)
 class ExperimentConfig:
     seeds: int = 20
-    objects: tuple[str, ...] = objects.BUILTIN_OBJECTS
+    objects: tuple[str, ...] = builtin_objects.BUILTIN_OBJECTS
     particles: int = 60
     iterations: int = 50
     snapshots: tuple[int, ...] = (5, 20, 50)
@@ -89,8 +89,8 @@ class ExperimentConfig:
     def __post_init__(self) -> None:
         if self.seeds < 1:
             raise ValueError(f"seeds: expected >= 1, got {self.seeds}")
-        unknown = [o for o in self.objects if o not in objects.BUILTIN_OBJECTS]
+        unknown = [o for o in self.objects if o not in builtin_objects.BUILTIN_OBJECTS]
         if unknown or not self.objects:
-            raise ValueError(f"objects: expected some of {objects.BUILTIN_OBJECTS}, got {self.objects}")
+            raise ValueError(f"objects: expected some of {builtin_objects.BUILTIN_OBJECTS}, got {self.objects}")
         if len(self.snapshots) != 3 or not all(1 <= k <= self.iterations for k in self.snapshots):
             raise ValueError(f"snapshots: expected 3 iterations within 1..{self.iterations}, got {self.snapshots}")

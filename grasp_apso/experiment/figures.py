@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import objects
-from ..hand import FINGER_NAMES
-from ..planner import GraspResult, PlanOptions, plan
+from ..model import builtin as builtin_objects
+from ..model.hand import FINGER_NAMES
+from ..search.planner import GraspResult, PlanOptions, plan
 from .config import _COLORS, ALGORITHM_LABELS, OBJECT_LABELS, ExperimentConfig
 from .progress import _log
 from .records import valid_grasp
@@ -64,7 +64,7 @@ def _grasp_cell(result: GraspResult, obj, hand, path: str, dpi: int) -> np.ndarr
     """The grasp drawn by ``plotting.plot_grasp`` (fingertip view), legend cut off."""
     import matplotlib.image as mpimg
 
-    from ..plotting import plot_grasp
+    from ..tools.plotting import plot_grasp
 
     plot_grasp(result, obj, path=path, title="", hand=hand, views=("fingertips",), dpi=dpi)
     img = mpimg.imread(path)
@@ -84,7 +84,7 @@ def _legend_handles():
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from ..plotting import FINGER_COLORS
+    from ..tools.plotting import FINGER_COLORS
 
     handles = [Line2D([], [], color=FINGER_COLORS[n], linewidth=5, label=n) for n in FINGER_NAMES]
     handles += [
@@ -111,7 +111,7 @@ def table3_figures(cfg: ExperimentConfig, runs: dict, out: str, hand) -> tuple[d
     checks: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in cfg.objects:
-            obj = objects.builtin(name)
+            obj = builtin_objects.builtin(name)
             cells: dict[tuple[str, int], tuple[np.ndarray, str]] = {}
             seeds = {}
             for alg in ("pso", "apso"):

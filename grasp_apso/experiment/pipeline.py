@@ -8,7 +8,7 @@ import time
 from dataclasses import asdict
 from typing import Any
 
-from ..hand import load_hand
+from ..model.hand import load_hand
 from .analysis import evaluate_claims, find_anomalies, summarise
 from .config import ExperimentConfig
 from .figures import plot_convergence_panels, plot_evaluation_panels, plot_speed, table3_figures

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from ..hand import FINGER_NAMES, load_hand
-from ..planner import GraspResult
+from ..model.hand import FINGER_NAMES, load_hand
+from ..search.planner import GraspResult
 from .stats import _finite, _round
 
 

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import objects
-from ..planner import GraspResult, Objective, PlanOptions, plan
+from ..model import builtin as builtin_objects
+from ..search.planner import GraspResult, Objective, PlanOptions, plan
 from .config import PYSWARMS_BOUNDARY, PYSWARMS_LOCAL, PYSWARMS_OPTIONS, ExperimentConfig
 from .progress import _log
 from .records import record_of
@@ -26,7 +26,7 @@ def run_main(cfg: ExperimentConfig, hand) -> dict[str, dict[str, list[dict[str, 
     """APSO and the simple PSO (and PSO on APSO's budget) on every object and seed."""
     runs: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for name in cfg.objects:
-        obj = objects.builtin(name)
+        obj = builtin_objects.builtin(name)
         # Preparation (grid) once, outside the timed plans.
         plan(obj, options=PlanOptions(particles=cfg.particles, iterations=1), rng=np.random.default_rng(0), hand=hand)
         runs[name] = {"apso": [], "pso": []}
@@ -78,7 +78,7 @@ def run_pyswarms(cfg: ExperimentConfig, runs: dict, hand) -> dict[str, Any]:
 
     logging.getLogger("pyswarms").setLevel(logging.WARNING)
     for name in cfg.objects:
-        obj = objects.builtin(name)
+        obj = builtin_objects.builtin(name)
         budget = _stats([r["evaluations"] for r in runs[name]["apso"]])["median"]
         iters = max(1, int(round(budget / cfg.particles)))
         info["iterations"][name] = iters

@@ -9,9 +9,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .. import objects
-from ..hand import load_hand
-from ..planner import PlanOptions, plan
+from ..model import objects
+from ..model import builtin as builtin_objects
+from ..model.hand import load_hand
+from ..search.planner import PlanOptions, plan
 from .config import SpeedConfig
 from .progress import _log
 from .stats import _stats
@@ -28,7 +29,8 @@ def _sweep_mesh(kind: str, size: int):
 
 
 def _clear_caches() -> None:
-    from .. import planner, sdf
+    from ..search import planner
+    from ..geometry import sdf
 
     with sdf._CACHE_LOCK:
         sdf._CACHE.clear()
@@ -37,7 +39,7 @@ def _clear_caches() -> None:
 
 
 def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
-              objects_: Sequence[str] = objects.BUILTIN_OBJECTS, log: Callable[[str], None] = _log) -> dict[str, Any]:
+              objects_: Sequence[str] = builtin_objects.BUILTIN_OBJECTS, log: Callable[[str], None] = _log) -> dict[str, Any]:
     """Plan time per object, and how it grows with particles, iterations and triangles.
 
     ``per_object``: plan times already measured (``{object: {algorithm: [records]}}``);
@@ -55,7 +57,7 @@ def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
         return r
 
     for name in objects_:
-        obj = objects.builtin(name)
+        obj = builtin_objects.builtin(name)
         result["per_object"][name] = {}
         for alg in ("apso", "pso"):
             if per_object is not None:
@@ -74,7 +76,7 @@ def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
         log(f"speed {name}: APSO {result['per_object'][name]['apso']['planning_time']['median']:.3f} s, "
             f"PSO {result['per_object'][name]['pso']['planning_time']['median']:.3f} s (median)")
 
-    obj = objects.builtin(speed.sweep_object)
+    obj = builtin_objects.builtin(speed.sweep_object)
     timed(obj, PlanOptions(iterations=1), 0)
     for key, values in (("particles", speed.particles), ("iterations", speed.iterations)):
         for v in values:

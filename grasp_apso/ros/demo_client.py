@@ -1,4 +1,4 @@
-"""Demo client of the ``grasp_apso`` node (``python -m grasp_apso.demo_client [object]``).
+"""Demo client of the ``grasp_apso`` node (``python -m grasp_apso.ros.demo_client [object]``).
 
 Waits for the node's ``~/plan_grasp`` service, subscribes to its ``~/progress`` topic,
 plans a grasp of a built-in object (fish by default), then prints the result readably:
@@ -26,13 +26,13 @@ from scipy.spatial.transform import Rotation
 from grasp_apso_interfaces.msg import GraspProgress
 from grasp_apso_interfaces.srv import PlanGrasp
 
-from .hand import FINGER_NAMES, JOINT_KINDS
-from .objects import BUILTIN_OBJECTS
+from ..model.hand import FINGER_NAMES, JOINT_KINDS
+from ..model.builtin import BUILTIN_OBJECTS
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="python -m grasp_apso.demo_client",
+        prog="python -m grasp_apso.ros.demo_client",
         description="Plan a grasp of a built-in object through the grasp_apso node and print it.")
     parser.add_argument("object", nargs="?", default="fish", choices=BUILTIN_OBJECTS,
                         help="built-in object (default: fish)")

@@ -2,10 +2,10 @@
 
 The planner prepares the object (signed-distance grid, cached by mesh hash), classifies
 its shape (GRG parameter factor), runs APSO or the simple PSO over particles of
-:mod:`grasp_apso.contacts` layout, and verifies the best grasp independently: the
-Ferrari-Canny epsilon with friction cones (:mod:`grasp_apso.quality`) and python-fcl
+:mod:`grasp_apso.geometry.decoder` layout, and verifies the best grasp independently: the
+Ferrari-Canny epsilon with friction cones (:mod:`grasp_apso.quality.measures.measures`) and python-fcl
 collision checks of the links against the mesh and between fingers
-(:mod:`grasp_apso.collision`). Results are returned in the planning frame of ``pose``.
+(:mod:`grasp_apso.geometry.collision`). Results are returned in the planning frame of ``pose``.
 """
 
 from __future__ import annotations
@@ -13,151 +13,33 @@ from __future__ import annotations
 import threading
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
-from .collision import FclReport, mesh_bvh, verify_with_fcl
-from .contacts import N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model
-from .fitness import evaluate
-from .grg import GraspPlanningError, GuidedGenerator, ShapeClass, classify_shape
-from .hand import FINGER_NAMES, JOINT_NAMES, HandModel, load_hand
-from .quality import epsilon_quality
-from .swarm import IterationStats, SwarmOptions, run_swarm
+from ..errors import InputError, ObjectTooLargeError, PlanningError
+from ..geometry.collision import FclReport, mesh_bvh, verify_with_fcl
+from ..geometry.decoder import N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model
+from ..quality.fitness import evaluate
+from .grg import GuidedGenerator, ShapeClass, classify_shape
+from ..model.builtin import builtin
+from ..model.hand import FINGER_NAMES, JOINT_NAMES, HandModel, load_hand
+from ..model.particle import LAYOUT
+from ..quality.measures import epsilon_quality
+from .candidates import make_candidate
+from .options import ALGORITHMS, PlanOptions
+from .result import Contact, GraspCandidate, GraspResult
+from .swarm import IterationStats, run_swarm
 
 __all__ = [
     "ALGORITHMS", "Contact", "GraspResult", "IterationStats", "Objective", "PlanOptions",
     "PlanningError", "plan", "prepare", "warm_up",
 ]
 
-ALGORITHMS: tuple[str, ...] = ("apso", "pso")
-PlanningError = GraspPlanningError
 #: Objects whose smallest extent exceeds this cannot be held in a precision grasp.
 MAX_GRASPABLE_WIDTH = 0.16
 MIN_GRASPABLE_SIZE = 0.005
-
-
-@dataclass(frozen=True)
-class PlanOptions:
-    """Everything a plan can be told (SI units). Invalid values raise ``ValueError``.
-
-    Attributes
-    ----------
-    algorithm : "apso" | "pso"
-    particles, iterations : int
-        Swarm size np (2..1000) and iterations nit (1..10000).
-    neighborhood_size : int
-        Particles per APSO neighbourhood (1..particles).
-    c1, c2 : float in [0, 4]
-        Acceleration constants toward the personal and global bests.
-    inertia : float in [0, 1]
-    stall_iterations : int
-        Iterations without improvement after which a neighbourhood's worst is replaced.
-    improvement : float
-        Fitness gain that counts as improvement.
-    max_evaluations : int
-        Cap on particle decodes (0: none), for equal-budget comparisons.
-    contact_tolerance : float, m
-        A fingertip pad this close to the surface is a contact (0 < t <= 0.02).
-    friction : float
-        Coulomb friction coefficient of the Ferrari-Canny epsilon (0 < mu <= 5).
-    friction_edges : int
-        Edges of the linearised friction cones (3..64).
-    wrist_position : (3,) float or None, m
-        Fixed wrist position in the object frame; None computes it per particle.
-    closure_candidates : int
-        When the global best is not force closure (by the epsilon measure), up to this
-        many of the next-best distinct personal bests are verified and the first valid
-        force-closure one is returned instead (1: the global best only; 1..100).
-    """
-
-    algorithm: str = "apso"
-    # Swarm defaults have one source of truth: SwarmOptions.
-    particles: int = SwarmOptions.particles
-    iterations: int = SwarmOptions.iterations
-    neighborhood_size: int = SwarmOptions.neighborhood_size
-    c1: float = SwarmOptions.c1
-    c2: float = SwarmOptions.c2
-    inertia: float = SwarmOptions.inertia
-    stall_iterations: int = SwarmOptions.stall_iterations
-    improvement: float = SwarmOptions.improvement
-    max_evaluations: int = SwarmOptions.max_evaluations
-    contact_tolerance: float = 0.002
-    friction: float = 0.5
-    friction_edges: int = 8
-    wrist_position: tuple[float, float, float] | None = None
-    closure_candidates: int = 30
-
-    def __post_init__(self) -> None:
-        if self.algorithm not in ALGORITHMS:
-            raise ValueError(f"algorithm: unknown '{self.algorithm}' (expected one of {', '.join(ALGORITHMS)})")
-        for name, lo, hi in (("particles", 2, 1000), ("iterations", 1, 10000), ("friction_edges", 3, 64),
-                             ("closure_candidates", 1, 100)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-                raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
-        if not 0 < self.contact_tolerance <= 0.02:
-            raise ValueError(f"contact_tolerance: expected (0, 0.02] m, got {self.contact_tolerance!r}")
-        if not 0 < self.friction <= 5:
-            raise ValueError(f"friction: expected (0, 5], got {self.friction!r}")
-        if self.wrist_position is not None:
-            wp = np.asarray(self.wrist_position, dtype=float)
-            if wp.shape != (3,) or not np.all(np.isfinite(wp)):
-                raise ValueError(f"wrist_position: expected 3 finite numbers, got {self.wrist_position!r}")
-        self.swarm_options()  # validates the swarm parameters
-
-    def swarm_options(self) -> SwarmOptions:
-        return SwarmOptions(
-            particles=self.particles, iterations=self.iterations,
-            neighborhood_size=self.neighborhood_size, c1=self.c1, c2=self.c2,
-            inertia=self.inertia, stall_iterations=self.stall_iterations,
-            improvement=self.improvement, max_evaluations=self.max_evaluations,
-        )
-
-
-@dataclass(frozen=True)
-class Contact:
-    """A fingertip contact in the planning frame (position m, outward unit normal)."""
-
-    finger: str
-    position: np.ndarray
-    normal: np.ndarray
-
-
-@dataclass(frozen=True)
-class GraspResult:
-    """A planned grasp; see ``docs/architecture.md`` for the field list."""
-
-    configuration: np.ndarray
-    joint_names: tuple[str, ...]
-    joint_positions: np.ndarray
-    standoff: float
-    wrist_pose: np.ndarray
-    wrist_in_object: np.ndarray
-    fitness: float
-    epsilon: float
-    force_closure: bool
-    contacts: tuple[Contact, ...]
-    valid: bool
-    history: tuple[IterationStats, ...]
-    iterations_run: int
-    evaluations: int
-    planning_time: float
-    preparation_time: float
-    cancelled: bool
-    algorithm: str
-    shape_class: str
-    fcl: FclReport
-    joints: np.ndarray
-    max_penetration: float
-    tip_gaps: np.ndarray = field(repr=False)
-    #: True when the global best was not force closure and a runner-up was returned.
-    runner_up: bool = False
-
-    @property
-    def n_contacts(self) -> int:
-        return len(self.contacts)
 
 
 class GraspProblem:
@@ -210,7 +92,7 @@ def prepare(obj, hand: HandModel | None = None, options: PlanOptions | None = No
     options = options or PlanOptions()
     extents = np.asarray(obj.principal_extents, dtype=float)
     if extents[-1] > MAX_GRASPABLE_WIDTH:
-        raise PlanningError(
+        raise ObjectTooLargeError(
             f"object: too large for a precision grasp: its smallest extent is {extents[-1]:.3f} m, "
             f"the hand opens to about {MAX_GRASPABLE_WIDTH:.2f} m"
         )
@@ -286,7 +168,7 @@ def plan(
 
 
 def warm_up() -> float:
-    """Load the compiled kernels (:mod:`grasp_apso.kernels`, :mod:`grasp_apso.quality_kernels`)
+    """Load the compiled kernels (:mod:`grasp_apso.geometry.kernels`, :mod:`grasp_apso.quality.measures.kernels`)
     before the first plan.
 
     They are numba functions cached on disk: a process loads them on its first use,
@@ -295,8 +177,6 @@ def warm_up() -> float:
     up front: the node does it in its worker thread before the first request, the
     command line before it times a plan. Idempotent; returns the seconds it took.
     """
-    from .objects import builtin
-
     t0 = time.perf_counter()
     cube = builtin("cube")
     plan(cube, options=PlanOptions(particles=2, neighborhood_size=2, iterations=1), rng=np.random.default_rng(0))
@@ -376,18 +256,24 @@ def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> 
     closed = decoded.closed[0]
     wrist_in_object = decoded.wrist[0]
     legal = bool(decoded.legal(model.settings.max_penetration)[0])
+    valid = legal and len(contacts) >= 2 and report.legal
+    candidate = make_candidate(
+        hand, 0, x[0], closed, wrist_in_object, pose, options.approach_distance,
+        grasp_quality=0.0, fitness=float(terms.fitness[0]), epsilon=float(eps),
+        force_closure=bool(closure), valid=valid, contacts=contacts,
+    )
     return GraspResult(
-        configuration=closed[:18].reshape(6, 3).copy(),
+        configuration=LAYOUT.cg(candidate.joint_positions),
         joint_names=JOINT_NAMES,
-        joint_positions=closed[:18].copy(),
-        standoff=float(closed[N_DIMS - 1]),
+        joint_positions=candidate.joint_positions.copy(),
+        standoff=float(closed[LAYOUT.standoff]),
         wrist_pose=pose @ wrist_in_object,
         wrist_in_object=wrist_in_object,
         fitness=float(terms.fitness[0]),
         epsilon=float(eps),
         force_closure=bool(closure),
         contacts=contacts,
-        valid=legal and len(contacts) >= 2 and report.legal,
+        valid=valid,
         history=tuple(swarm.history),
         iterations_run=swarm.iterations_run,
         evaluations=problem.evaluations,
@@ -400,6 +286,7 @@ def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> 
         joints=decoded.joints[0] @ rot.T + trans,
         max_penetration=float(decoded.penetration[0].max()),
         tip_gaps=decoded.tip_gap[0].copy(),
+        candidates=(candidate,),
     )
 
 

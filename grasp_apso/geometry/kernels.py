@@ -13,7 +13,7 @@ particle ``f // 5`` (F = P * 5 rows). The kernels release the GIL (the ROS node'
 executor keeps serving while a plan runs in its worker thread) and are cached on disk,
 so they are compiled once per installation (``NUMBA_CACHE_DIR`` moves the cache when
 the package directory is read-only). The semantics are those documented in
-:mod:`grasp_apso.contacts`, :mod:`grasp_apso.sdf` and :mod:`grasp_apso.collision`,
+:mod:`grasp_apso.geometry.decoder`, :mod:`grasp_apso.geometry.sdf` and :mod:`grasp_apso.geometry.collision`,
 which call them; the callers validate their inputs.
 """
 

@@ -1,18 +1,18 @@
 """Mesh files: load an STL / OBJ / PLY / OFF file into a :class:`GraspObject`.
 
 :func:`from_file` is the only entry point (also available as
-``grasp_apso.objects.from_file`` and ``GraspObject.from_file``). It takes a request's
+``grasp_apso.model.mesh_files.from_file`` and ``GraspObject.from_file``). It takes a request's
 ``mesh_uri`` -- a path or a ``file://`` URI -- and, in order:
 
 1. turns the URI into a path (``file://`` only, local host, percent-decoded);
 2. resolves symlinks and ``..`` and, when an allowed directory is given, refuses a file
    outside it (checked before the file is looked at);
-3. takes the format from the extension (:data:`~grasp_apso.objects.MESH_FORMATS`);
+3. takes the format from the extension (:data:`~grasp_apso.model.objects.MESH_FORMATS`);
 4. reads the file, refusing more than ``max_bytes`` (default :data:`DEFAULT_MAX_BYTES`);
 5. parses it with trimesh (a multi-geometry file is flattened and concatenated);
-6. validates and processes the mesh with :func:`grasp_apso.objects.from_arrays`.
+6. validates and processes the mesh with :func:`grasp_apso.model.objects.from_arrays`.
 
-Every failure raises :class:`~grasp_apso.objects.ObjectError`: ``mesh_uri: ...`` for the
+Every failure raises :class:`~grasp_apso.errors.ObjectError`: ``mesh_uri: ...`` for the
 file, ``mesh: ... (mesh_uri: <path>)`` for the mesh in it. Vertices are read as metres
 in the object frame.
 """
@@ -28,14 +28,9 @@ from typing import Union
 import numpy as np
 import trimesh
 
-from .objects import (
-    DEFAULT_MAX_TRIANGLES,
-    MESH_FORMATS,
-    GraspObject,
-    ObjectError,
-    _check_limit,
-    from_arrays,
-)
+from ..errors import ObjectError
+from .mesh_checks import DEFAULT_MAX_TRIANGLES, check_limit
+from .objects import MESH_FORMATS, GraspObject, from_arrays
 
 __all__ = ["DEFAULT_MAX_BYTES", "PathLike", "from_file"]
 
@@ -222,7 +217,7 @@ def from_file(
     containment check resolves symlinks at call time. A multi-geometry file (a trimesh
     Scene) is flattened with its transforms and concatenated.
     """
-    limit = _check_limit(max_triangles)
+    limit = check_limit(max_triangles)
     if isinstance(max_bytes, bool) or not isinstance(max_bytes, (int, np.integer)) or max_bytes < 1:
         raise ValueError(f"max_bytes: expected a positive integer, got {max_bytes!r}")
     requested = _uri_to_path(path)

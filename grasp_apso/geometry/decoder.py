@@ -4,9 +4,9 @@ For every particle: place the wrist, set the pre-shape, close each finger along 
 flexion until one of its links meets the surface (or its joint limits are reached),
 compute the joint angles with the kinematic model, and detect fingertip contacts,
 penetrations and finger-finger collisions. Everything is batched over particles and
-fingers; the surface is the object's :class:`~grasp_apso.sdf.SignedDistanceGrid`.
+fingers; the surface is the object's :class:`~grasp_apso.geometry.sdf.SignedDistanceGrid`.
 
-Particle layout (D = 19, SI): the 18 values of Cg (see :mod:`grasp_apso.hand`) and the
+Particle layout (D = 19, SI): the 18 values of Cg (see :mod:`grasp_apso.model.hand`) and the
 standoff offset (m) added to the computed wrist standoff.
 
 Closing motion: finger i moves from its pre-shape ``(theta_i1, theta_i2)`` linearly to
@@ -36,12 +36,13 @@ import numpy as np
 
 from . import kernels
 from .collision import finger_collisions
-from .hand import N_FINGERS, HandModel, wrist_rotation
+from ..model.hand import N_FINGERS, HandModel, wrist_rotation
+from ..model.particle import LAYOUT
 from .sdf import SignedDistanceGrid, cached_sdf_grid
 
-#: Index of the standoff offset in a particle.
-STANDOFF_INDEX = 18
-N_DIMS = 19
+#: Particle size and standoff index (named slices: :data:`grasp_apso.model.particle.LAYOUT`).
+STANDOFF_INDEX = LAYOUT.standoff
+N_DIMS = LAYOUT.dims
 
 # Points along the links checked while closing: (link, fraction). The last one is the
 # fingertip pad centre. The finger base (link 0, fraction 0) does not move while closing
@@ -142,7 +143,7 @@ class GraspModel:
     """Everything fixed during a plan: hand, object, its distance grid, settings.
 
     Build it with :func:`make_grasp_model`. ``obj`` is a
-    :class:`~grasp_apso.objects.GraspObject` (mesh, centre of mass, hull vertices).
+    :class:`~grasp_apso.model.objects.GraspObject` (mesh, centre of mass, hull vertices).
     """
 
     hand: HandModel
@@ -300,7 +301,7 @@ def wrist_transforms(
     -------
     (P, 4, 4) float
     """
-    rot = wrist_rotation(x[:, 15:18])
+    rot = wrist_rotation(x[:, LAYOUT.wrist])
     tf = np.zeros((len(x), 4, 4))
     tf[:, :3, :3] = rot
     tf[:, 3, 3] = 1.0
@@ -330,7 +331,7 @@ def decode(
     """Decode particles into closed grasps (vectorised over particles and fingers).
 
     The wrist and the flexion planes are placed with numpy; closing the fingers and
-    checking their closed pose run in compiled loops (:func:`grasp_apso.kernels.close_fingers`).
+    checking their closed pose run in compiled loops (:func:`grasp_apso.geometry.kernels.close_fingers`).
 
     Parameters
     ----------
@@ -363,12 +364,12 @@ def decode(
 
     wrist = wrist_transforms(model, x, wrist_position) if reuse is None else reuse.wrist
     rot, trans = np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3])
-    theta = x[:, :15].reshape(n, N_FINGERS, 3)
+    theta = LAYOUT.finger_values(x)
     distal0, proximal0, pivot = theta[..., 0], theta[..., 1], theta[..., 2]
     # Flexion planes in the palm frame, one row per finger: (F, 3: base, ex, ey, 3).
     planes = np.ascontiguousarray(np.stack(hand.flexion_planes(pivot), axis=-2).reshape(-1, 3, 3))
-    d_span = hand.upper[0:15:3] - distal0
-    p_span = hand.upper[1:15:3] - proximal0
+    d_span = hand.upper[LAYOUT.distal] - distal0
+    p_span = hand.upper[LAYOUT.proximal] - proximal0
 
     r = len(rows)
     s_r = np.empty(r)
@@ -411,7 +412,7 @@ def decode(
             full = getattr(reuse, name).copy()
             full.reshape((n * N_FINGERS,) + value.shape[1:])[rows] = value
             out[name] = full
-        flexions = reuse.closed[:, :15].reshape(n, N_FINGERS, 3)[..., :2].copy()
+        flexions = LAYOUT.finger_values(reuse.closed)[..., :2].copy()
         flexions.reshape(-1, 2)[rows] = flex_r
 
     joints = np.ascontiguousarray(out["joints"])
@@ -420,8 +421,8 @@ def decode(
     collide |= out["palm_depth"] > settings.palm_overlap
 
     closed = x.copy()
-    closed[:, 0:15:3] = flexions[..., 0]
-    closed[:, 1:15:3] = flexions[..., 1]
+    closed[:, LAYOUT.distal] = flexions[..., 0]
+    closed[:, LAYOUT.proximal] = flexions[..., 1]
     if reuse is not None:
         palm_pen = reuse.palm_penetration
     elif wrist_position is None:
@@ -446,7 +447,7 @@ def _rows_to_decode(x: np.ndarray, reuse: DecodedGrasps | None, changed: np.ndar
     # A kept finger's flexions are closed in ``reuse`` (not comparable); its pivot is not.
     if not np.array_equal(reuse.closed[:, 15:], x[:, 15:]):
         raise ValueError("reuse: the wrist angles or the standoff differ from x")
-    if not np.all((reuse.closed[:, 2:15:3] == x[:, 2:15:3]) | changed):
+    if not np.all((reuse.closed[:, LAYOUT.pivot] == x[:, LAYOUT.pivot]) | changed):
         raise ValueError("reuse: the pivot of a finger not in changed differs from x")
     return np.flatnonzero(changed.reshape(-1)).astype(np.int64)
 

@@ -25,10 +25,13 @@ given the same budget (``max_evaluations``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Callable, Protocol
 
 import numpy as np
+
+from ..errors import InputError
+from ..tunables import check, default
 
 
 @dataclass(frozen=True)
@@ -38,37 +41,25 @@ class SwarmOptions:
     ``max_evaluations`` = 0 means no evaluation cap (only ``iterations``).
     """
 
-    particles: int = 60
-    iterations: int = 50
-    neighborhood_size: int = 5
-    c1: float = 1.0
-    c2: float = 1.5
-    inertia: float = 0.6
-    stall_iterations: int = 3
-    improvement: float = 1e-3
-    velocity_init: float = 0.05
-    velocity_max: float = 0.25
-    max_evaluations: int = 0
-    max_replacements: float = 0.1
+    particles: int = default("particles")
+    iterations: int = default("iterations")
+    neighborhood_size: int = default("neighborhood_size")
+    c1: float = default("c1")
+    c2: float = default("c2")
+    inertia: float = default("inertia")
+    stall_iterations: int = default("stall_iterations")
+    improvement: float = default("improvement")
+    velocity_init: float = default("velocity_init")
+    velocity_max: float = default("velocity_max")
+    max_evaluations: int = default("max_evaluations")
+    max_replacements: float = default("max_replacements")
 
     def __post_init__(self) -> None:
-        checks = {
-            "particles": 2 <= self.particles <= 1000,
-            "iterations": 1 <= self.iterations <= 10000,
-            "neighborhood_size": 1 <= self.neighborhood_size <= self.particles,
-            "c1": 0.0 <= self.c1 <= 4.0,
-            "c2": 0.0 <= self.c2 <= 4.0,
-            "inertia": 0.0 <= self.inertia <= 1.0,
-            "stall_iterations": 1 <= self.stall_iterations <= 1000,
-            "improvement": 0.0 <= self.improvement <= 1.0,
-            "velocity_init": 0.0 <= self.velocity_init <= 1.0,
-            "velocity_max": 0.0 < self.velocity_max <= 1.0,
-            "max_evaluations": 0 <= self.max_evaluations <= 10_000_000,
-            "max_replacements": 0.0 <= self.max_replacements <= 1.0,
-        }
-        for name, ok in checks.items():
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is out of range")
+        for f in fields(self):
+            object.__setattr__(self, f.name, check(f.name, getattr(self, f.name)))
+        if self.neighborhood_size > self.particles:
+            raise InputError(
+                f"neighborhood_size: {self.neighborhood_size} is larger than particles ({self.particles})")
 
 
 class Problem(Protocol):

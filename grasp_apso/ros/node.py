@@ -1,4 +1,4 @@
-"""The ROS 2 node ``grasp_apso``: a thin adapter over :func:`grasp_apso.planner.plan`.
+"""The ROS 2 node ``grasp_apso``: a thin adapter over :func:`grasp_apso.search.planner.plan`.
 
 Interface (names relative to the node, so ``/grasp_apso/...`` by default)
 -------------------------------------------------------------------------
@@ -22,7 +22,7 @@ executor keeps serving (progress, parameters, other callers) while a plan runs. 
 worker completes that Future through ``executor.create_task`` (a Future completed
 directly from another thread does not wake the executor). The worker publishes progress,
 action feedback and markers itself (publishing is thread-safe in rclpy). The worker's
-first job loads the planner's compiled kernels (:func:`grasp_apso.planner.warm_up`, about
+first job loads the planner's compiled kernels (:func:`grasp_apso.search.planner.warm_up`, about
 0.3 s; once after an install about 5 s while they compile); requests that arrive
 meanwhile wait behind it. The kernels release the GIL, so the executor's threads keep
 running while a plan computes.
@@ -94,13 +94,18 @@ from grasp_apso_interfaces.action import PlanGrasp as PlanGraspAction
 from grasp_apso_interfaces.msg import GraspProgress
 from grasp_apso_interfaces.srv import PlanGrasp
 
-from . import objects
+from ..model import objects
+from ..model import mesh_files
+from ..model import builtin as builtin_objects
+from .. import errors
+from ..model import mesh_checks
 from .conversions import (
     fill_result, grasp_markers, mesh_to_arrays, packed_mesh_to_arrays, pose_stamped_to_matrix, progress_msg,
 )
-from .hand import HandModel, load_hand
-from .objects import BUILTIN_OBJECTS, ObjectError
-from .planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan, warm_up
+from ..model.hand import HandModel, load_hand
+from ..model.builtin import BUILTIN_OBJECTS
+from ..errors import ObjectError
+from ..search.planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan, warm_up
 
 __all__ = ["GraspPlannerNode", "PARAMETERS", "main"]
 
@@ -167,9 +172,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec("allowed_mesh_dir", "",
                   "Directory mesh_uri files must lie in (symlinks and '..' resolved); "
                   "empty = mesh files are refused."),
-    ParameterSpec("max_mesh_triangles", objects.DEFAULT_MAX_TRIANGLES,
+    ParameterSpec("max_mesh_triangles", mesh_checks.DEFAULT_MAX_TRIANGLES,
                   "Largest accepted mesh (inline or file), triangles.", 4, 10_000_000),
-    ParameterSpec("max_mesh_bytes", objects.DEFAULT_MAX_BYTES,
+    ParameterSpec("max_mesh_bytes", mesh_files.DEFAULT_MAX_BYTES,
                   "Largest accepted mesh file, bytes.", 1, 2_000_000_000),
     ParameterSpec("queue_length", 4,
                   "Requests that may wait behind the running plan; more are answered "
@@ -250,8 +255,8 @@ class _Job:
     mesh_uri: str = ""
     allowed_dir: str = ""
     object_name: str = ""
-    max_triangles: int = objects.DEFAULT_MAX_TRIANGLES
-    max_bytes: int = objects.DEFAULT_MAX_BYTES
+    max_triangles: int = mesh_checks.DEFAULT_MAX_TRIANGLES
+    max_bytes: int = mesh_files.DEFAULT_MAX_BYTES
     goal_handle: Any = None
 
 
@@ -520,7 +525,7 @@ class GraspPlannerNode(Node):
             job.describe = f"mesh_uri {req.mesh_uri}"
         else:
             if name not in BUILTIN_OBJECTS:
-                objects.builtin(name)  # raises ObjectError "object_name: unknown ..."
+                builtin_objects.builtin(name)  # raises ObjectError "object_name: unknown ..."
             job.object_name = name
             job.describe = f"object {name}"
         return job
@@ -644,9 +649,9 @@ class GraspPlannerNode(Node):
 
     def _build_object(self, job: _Job) -> objects.GraspObject:
         if job.source == "object_name":
-            return objects.builtin(job.object_name)
+            return builtin_objects.builtin(job.object_name)
         if job.source == "mesh_uri":
-            return objects.from_file(job.mesh_uri, allowed_dir=job.allowed_dir,
+            return mesh_files.from_file(job.mesh_uri, allowed_dir=job.allowed_dir,
                                      max_triangles=job.max_triangles, max_bytes=job.max_bytes)
         digest = hashlib.sha1()
         for array in (job.vertices, job.triangles):
@@ -660,10 +665,10 @@ class GraspPlannerNode(Node):
                 return obj
         try:
             obj = objects.from_arrays(job.vertices, job.triangles, name="mesh", max_triangles=job.max_triangles)
-        except objects.ObjectError as exc:
+        except errors.ObjectError as exc:
             if job.source != _PACKED:
                 raise
-            raise objects.ObjectError(_packed_message(str(exc))) from None
+            raise errors.ObjectError(_packed_message(str(exc))) from None
         with self._objects_lock:
             self._objects[key] = obj
             while len(self._objects) > _OBJECT_CACHE_SIZE:

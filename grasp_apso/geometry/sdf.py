@@ -3,7 +3,7 @@
 Exact point-to-mesh queries cost about 200 us each (python-fcl) or far more (trimesh), and
 a plan makes hundreds of thousands of them (``shared/notes/geometry-speed.md``). So the
 signed distance is sampled once on a regular grid around the object and read back by
-trilinear interpolation (a compiled loop, :mod:`grasp_apso.kernels`).
+trilinear interpolation (a compiled loop, :mod:`grasp_apso.geometry.kernels`).
 
 Building the grid (:func:`build_sdf_grid`):
 

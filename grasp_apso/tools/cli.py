@@ -21,7 +21,7 @@ option, object the hand cannot grasp), 130 when interrupted before any result.
 Ctrl-C during planning stops the swarm at the end of the current iteration and reports
 the best grasp so far; a second Ctrl-C aborts.
 
-Also runnable as ``python -m grasp_apso.cli``.
+Also runnable as ``python -m grasp_apso.tools.cli``.
 """
 
 from __future__ import annotations
@@ -38,9 +38,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import objects
-from .hand import FINGER_NAMES, JOINT_KINDS, load_hand
-from .planner import ALGORITHMS, GraspResult, PlanningError, PlanOptions, plan, warm_up
+from ..model import objects
+from ..model import poses
+from ..model import mesh_files
+from ..model import builtin as builtin_objects
+from ..model.hand import FINGER_NAMES, JOINT_KINDS, load_hand
+from ..errors import GraspApsoError, ObjectTooLargeError, UsageError
+from ..search.planner import ALGORITHMS, GraspResult, PlanOptions, plan, warm_up
 
 PROG = "grasp_apso_plan"
 DEFAULT_OUT = "grasp_apso_out"
@@ -50,10 +54,6 @@ COMPARE_AT = (5, 20, 50)
 FCL_TOLERANCE_MM = 1.0
 _LINK_NAMES = {f: ("proximal", "middle", "distal") for f in FINGER_NAMES}
 _LINK_NAMES["thumb"] = ("metacarpal", "proximal", "distal")
-
-
-class UsageError(Exception):
-    """Bad command line input: printed as one line, exit status 2."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     src = parser.add_mutually_exclusive_group()
     src.add_argument("--object", metavar="NAME",
-                     help=f"built-in object: {', '.join(objects.BUILTIN_OBJECTS)} (default: sphere)")
+                     help=f"built-in object: {', '.join(builtin_objects.BUILTIN_OBJECTS)} (default: sphere)")
     src.add_argument("--mesh", metavar="FILE",
                      help=f"mesh file ({', '.join(objects.MESH_FORMATS).upper()}), coordinates in metres "
                           "(see --mesh-scale)")
@@ -137,13 +137,13 @@ def _load_object(args: argparse.Namespace):
     if args.mesh is not None:
         if args.mesh_scale <= 0:
             raise UsageError(f"--mesh-scale: expected a positive number, got {args.mesh_scale:g}")
-        obj = objects.from_file(args.mesh)
+        obj = mesh_files.from_file(args.mesh)
         if args.mesh_scale != 1.0:
             obj = objects.from_arrays(np.asarray(obj.mesh.vertices) * args.mesh_scale,
                                       np.asarray(obj.mesh.faces), name=obj.name)
         return obj, "mesh file " + args.mesh
     name = args.object if args.object is not None else "sphere"
-    return objects.builtin(name.strip().lower()), "built-in"
+    return builtin_objects.builtin(name.strip().lower()), "built-in"
 
 
 def _algorithms(text: str) -> tuple[str, ...]:
@@ -310,7 +310,7 @@ def format_report(result: GraspResult, hand, friction: float,
     lines.append("  (distal theta_i1 drives the last two joints, coupled 1.5:1; wrist: palm orientation "
                  "R = Rz Ry Rx; * = at a limit)")
     lines.append("")
-    position, quat = objects.matrix_to_pose(result.wrist_pose)
+    position, quat = poses.matrix_to_pose(result.wrist_pose)
     lines.append(f"Wrist pose (palm frame: origin at the wrist, +x fingers, +z palm normal) in the {pose_note}:")
     lines.append(f"  position     {_vec(np.asarray(position) * 1000)} mm")
     lines.append(f"  quaternion   {_vec(quat, '{:7.4f}')} (x, y, z, w)")
@@ -412,7 +412,7 @@ def summary_line(result: GraspResult, object_name: str) -> str:
 # ----------------------------------------------------------------------------- JSON
 def result_to_dict(result: GraspResult, friction: float | None = None) -> dict[str, Any]:
     """JSON-ready summary of a plan (SI units: metres, radians, seconds)."""
-    position, quat = objects.matrix_to_pose(result.wrist_pose)
+    position, quat = poses.matrix_to_pose(result.wrist_pose)
     fcl = result.fcl
     return {
         "algorithm": result.algorithm,
@@ -478,7 +478,7 @@ def _run(args: argparse.Namespace, out, err) -> int:
     elif seed < 0:
         raise UsageError(f"--seed: must be >= 0, got {seed}")
 
-    from .grg import classify_shape
+    from ..search.grg import classify_shape
 
     shape = classify_shape(obj)
     ext = " x ".join(f"{e * 1000:.0f}" for e in obj.principal_extents)
@@ -561,15 +561,16 @@ def _run(args: argparse.Namespace, out, err) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``grasp_apso_plan``; returns the exit status."""
     parser = build_parser()
+    args = None
     try:
         args = parser.parse_args(argv)
         out = sys.stderr if args.json == "-" else sys.stdout
         return _run(args, out, sys.stderr)
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
-    except (PlanningError, ValueError) as exc:
+    except (GraspApsoError, ValueError) as exc:
         message = _cli_message(exc)
-        if "too large" in message and "--mesh" in " ".join(argv if argv is not None else sys.argv):
+        if isinstance(exc, ObjectTooLargeError) and args is not None and args.mesh is not None:
             message += " (is the mesh in millimetres? try --mesh-scale 0.001)"
         print(f"{PROG}: error: {message}", file=sys.stderr)
     except OSError as exc:

@@ -12,9 +12,9 @@ Functions
   ``mesh_triangles`` -> the same arrays; :func:`arrays_to_packed` the reverse
 - :func:`pose_stamped_to_matrix` -- ``PoseStamped`` -> (frame_id, 4x4), validated
 - :func:`matrix_to_pose_msg` -- 4x4 rigid transform -> ``geometry_msgs/Pose``
-- :func:`fill_result` -- a :class:`~grasp_apso.planner.GraspResult` into a ``PlanGrasp``
+- :func:`fill_result` -- a :class:`~grasp_apso.search.planner.GraspResult` into a ``PlanGrasp``
   response or action result (they have the same fields)
-- :func:`progress_msg` -- :class:`~grasp_apso.planner.IterationStats` -> ``GraspProgress``
+- :func:`progress_msg` -- :class:`~grasp_apso.search.planner.IterationStats` -> ``GraspProgress``
 - :func:`grasp_markers` -- a grasp as a ``visualization_msgs/MarkerArray`` for RViz
 """
 
@@ -34,8 +34,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from grasp_apso_interfaces.msg import GraspProgress
 
-from .hand import FINGER_NAMES, JOINT_NAMES, HandModel
-from .objects import matrix_to_pose, pose_to_matrix
+from ..model.hand import FINGER_NAMES, JOINT_NAMES, HandModel
+from ..model.poses import matrix_to_pose, pose_to_matrix
 
 __all__ = [
     "MARKER_NAMESPACE",
@@ -68,7 +68,7 @@ def mesh_to_arrays(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and triangles of a ``shape_msgs/Mesh``, unvalidated.
 
     Validation (finite vertices, indices in range, degenerate or flat meshes, size
-    limits) is :func:`grasp_apso.objects.from_arrays`'s job; this only copies (about
+    limits) is :func:`grasp_apso.model.objects.from_arrays`'s job; this only copies (about
     2 ms for 10,000 triangles; rclpy's own conversion of such a message to Python
     objects takes much longer).
 
@@ -203,7 +203,7 @@ def pose_stamped_to_matrix(pose: PoseStamped, field: str = "object_pose") -> tup
     ------
     ObjectError
         ``object_pose: ...`` for a non-finite position, a zero quaternion or one whose
-        norm is not 1 (within 1e-3; see :func:`grasp_apso.objects.pose_to_matrix`).
+        norm is not 1 (within 1e-3; see :func:`grasp_apso.model.poses.pose_to_matrix`).
     """
     p, q = pose.pose.position, pose.pose.orientation
     matrix = pose_to_matrix((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), field=field)
@@ -236,7 +236,7 @@ def _vector(values: Iterable[float]) -> Vector3:
 def fill_result(msg: Any, result: Any, header: Header, planning_time: float | None = None) -> Any:
     """Copy a planner result into a ``PlanGrasp`` response or action result.
 
-    Sets ``configuration`` (JointState: the 18 :data:`~grasp_apso.hand.JOINT_NAMES`,
+    Sets ``configuration`` (JointState: the 18 :data:`~grasp_apso.model.hand.JOINT_NAMES`,
     positions in radians, ``header`` = the request's), ``wrist_pose`` (PoseStamped in the
     request's frame), ``fitness``, ``epsilon_quality``, ``force_closure``, the contacts
     (points, outward normals, finger names; planning frame), ``iterations_run`` and
@@ -245,7 +245,7 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
     Parameters
     ----------
     msg : PlanGrasp.Response or PlanGrasp.Result
-    result : grasp_apso.planner.GraspResult
+    result : grasp_apso.search.planner.GraspResult
     header : std_msgs.msg.Header
         The request's ``object_pose.header`` (frame and stamp).
     planning_time : float, optional, s
@@ -279,7 +279,7 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
 
 
 def progress_msg(stats: Any, request_id: str, algorithm: str, header: Header) -> GraspProgress:
-    """A ``GraspProgress`` from one :class:`~grasp_apso.planner.IterationStats`.
+    """A ``GraspProgress`` from one :class:`~grasp_apso.search.planner.IterationStats`.
 
     Non-finite fitness values (no active particle yet) are sent as they are (``-inf``);
     ``ros2 topic echo`` shows them as ``-.inf``.
@@ -349,7 +349,7 @@ def grasp_markers(
 
     Parameters
     ----------
-    result : grasp_apso.planner.GraspResult
+    result : grasp_apso.search.planner.GraspResult
         Its ``joints`` (5, 4, 3) and ``contacts`` are in the planning frame.
     header : std_msgs.msg.Header
         The request's ``object_pose.header``.

@@ -2,7 +2,7 @@
 
 The optimiser's hot path uses :func:`finger_collisions`, a batched capsule-capsule test
 (each link is a capsule: a segment with a radius; compiled loops in
-:mod:`grasp_apso.kernels`). :func:`verify_with_fcl`
+:mod:`grasp_apso.geometry.kernels`). :func:`verify_with_fcl`
 checks one final grasp with python-fcl against the real mesh BVH: it is the
 "verification test" of the paper done with an independent geometry engine, used on the
 returned grasp and in tests to cross-check the grid-based decoding.
@@ -103,18 +103,27 @@ def mesh_bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
     return bvh
 
 
-def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> fcl.CollisionObject:
+def capsule_transform(p0: np.ndarray, p1: np.ndarray) -> tuple[fcl.Transform, float]:
+    """Pose and length of the fcl capsule along the segment [p0, p1].
+
+    fcl capsules lie along their local z, centred on the origin. p0, p1 : (3,) float, m.
+    Returns the ``fcl.Transform`` (rotation taking +z to the segment, centre at its
+    midpoint) and the length (m, at least 1e-9).
+    """
     axis = p1 - p0
     length = float(np.linalg.norm(axis))
     z = axis / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
-    # Rotation taking +z to the link axis (fcl capsules lie along z, centred).
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = np.cross(helper, z)
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     rot = np.column_stack([x, y, z])
-    tf = fcl.Transform(rot, 0.5 * (p0 + p1))
-    return fcl.CollisionObject(fcl.Capsule(radius, max(length, 1e-9)), tf)
+    return fcl.Transform(rot, 0.5 * (p0 + p1)), max(length, 1e-9)
+
+
+def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> fcl.CollisionObject:
+    tf, length = capsule_transform(p0, p1)
+    return fcl.CollisionObject(fcl.Capsule(radius, length), tf)
 
 
 def _collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:

@@ -1,7 +1,7 @@
 """Pictures of planned grasps: the hand and object in 3-D, and convergence curves.
 
-Pure functions that take planner results (:class:`grasp_apso.planner.GraspResult`) and
-write a PNG, returning its path; used by the command line (:mod:`grasp_apso.cli`) and
+Pure functions that take planner results (:class:`grasp_apso.search.planner.GraspResult`) and
+write a PNG, returning its path; used by the command line (:mod:`grasp_apso.tools.cli`) and
 reusable by experiment reports. No display is needed: figures are built with
 :class:`matplotlib.figure.Figure` and rendered by the Agg canvas, without pyplot, so the
 functions neither change nor depend on matplotlib's global backend and can run in worker
@@ -40,7 +40,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from .hand import FINGER_NAMES, HandModel, load_hand
+from ..model.hand import FINGER_NAMES, HandModel, load_hand
 
 __all__ = [
     "FINGER_COLORS",

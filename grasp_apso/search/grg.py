@@ -16,7 +16,7 @@ GRG draws particles that are plausible grasps before any optimisation:
    for that finger only, drawn from a more open range each round, and the particle is
    decoded again (a bounded number of rounds).
 
-Every loop is bounded; :class:`GraspPlanningError` says so when not enough valid
+Every loop is bounded; :class:`PlanningError` says so when not enough valid
 particles can be found.
 """
 
@@ -27,14 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import N_DIMS, STANDOFF_INDEX, GraspModel, decode
-from .hand import N_FINGERS
+from ..errors import PlanningError
+from ..geometry.decoder import N_DIMS, STANDOFF_INDEX, GraspModel, decode
+from ..model.hand import N_FINGERS, rotation_to_wrist_angles
+from ..model.particle import LAYOUT
 
 SHAPE_CLASSES: tuple[str, ...] = ("sphere-like", "box-like", "cylinder-like", "elongated")
-
-
-class GraspPlanningError(ValueError):
-    """The request cannot be planned (object unsuitable for the hand, no valid grasp)."""
 
 
 @dataclass(frozen=True)
@@ -114,7 +112,7 @@ class ShapeClass:
 
 
 def classify_shape(obj) -> ShapeClass:
-    """Shape parameter factor of a :class:`~grasp_apso.objects.GraspObject`.
+    """Shape parameter factor of a :class:`~grasp_apso.model.objects.GraspObject`.
 
     Rules (a >= b >= c the principal extents, fill = volume / (a b c)):
     sphere-like when a / c < 1.3 and fill < 0.65; box-like when fill > 0.85 and a / b < 2;
@@ -138,14 +136,6 @@ def classify_shape(obj) -> ShapeClass:
     else:
         name = "box-like" if fill > 0.7 else "sphere-like"
     return ShapeClass(name=name, axes=axes, extents=extents, box_fill=fill)
-
-
-def rotation_to_wrist_angles(rot: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`grasp_apso.hand.wrist_rotation`: (P, 3, 3) -> (P, 3) rad."""
-    ty = -np.arcsin(np.clip(rot[:, 2, 0], -1.0, 1.0))
-    tx = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
-    tz = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
-    return np.stack([tx, ty, tz], axis=1)
 
 
 def _random_unit(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -212,7 +202,7 @@ class PreshapeRanges:
 
 def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: PreshapeRanges) -> np.ndarray:
     """Finger values (n, 15): pre-shapes within the joint limits, see :class:`PreshapeRanges`."""
-    lo, hi = model.lower[:15], model.upper[:15]
+    lo, hi = model.lower[LAYOUT.fingers], model.upper[LAYOUT.fingers]
     frac_hi = np.tile([ranges.flexion_max, ranges.flexion_max, 1.0], N_FINGERS)
     frac_lo = np.zeros(15)
     frac_lo[14] = ranges.thumb_pivot_min
@@ -225,8 +215,8 @@ def sample_particles(
 ) -> np.ndarray:
     """Unverified guided particles (n, 19)."""
     x = np.empty((n, N_DIMS))
-    x[:, :15] = sample_fingers(model, n, rng, ranges)
-    x[:, 15:18] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+    x[:, LAYOUT.fingers] = sample_fingers(model, n, rng, ranges)
+    x[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
     per_width = shape.standoff_per_width if ranges.standoff_per_width is None else ranges.standoff_per_width
     top = max(ranges.standoff_max, per_width * float(shape.extents[-1]))
     x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(top, model.upper[STANDOFF_INDEX]), n)
@@ -323,12 +313,12 @@ class GuidedGenerator:
     def draw(self, k: int) -> np.ndarray:
         """``k`` verified particles from the reservoir (refilled in batches when low).
 
-        Raises GraspPlanningError when no valid particle can be generated.
+        Raises PlanningError when no valid particle can be generated.
         """
         if len(self._pool) < k:
             fresh, n_valid = self.generate(max(2 * k, self.refill))
             if n_valid == 0:
-                raise GraspPlanningError(
+                raise PlanningError(
                     f"object: GRG found no grasp with 2 or more fingertip contacts in {self.evaluations} "
                     f"candidate decodes (shape class {self.shape.name}, smallest extent "
                     f"{self.shape.extents[-1]:.3f} m); the object may not suit this hand"

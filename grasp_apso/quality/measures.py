@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull
 
-from . import quality_kernels
+from . import kernels as quality_kernels
 
 try:  # scipy >= 1.8 exposes QhullError here
     from scipy.spatial import QhullError
@@ -486,7 +486,7 @@ def normal_wrench_residual(
     (the squeeze lies strictly inside every cone). It grows as the best squeeze leaves
     a net wrench. Exact: the min-norm point of at most F points is found by enumerating
     the faces spanned by subsets of contacts (26 of two or more for F = 5; compiled,
-    :func:`grasp_apso.quality_kernels.wrench_batch`).
+    :func:`grasp_apso.quality.kernels.wrench_batch`).
 
     Parameters
     ----------

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from .particle import LAYOUT
 FINGER_NAMES: tuple[str, ...] = ("little", "ring", "middle", "index", "thumb")
 JOINT_KINDS: tuple[str, ...] = ("distal", "proximal", "pivot")
 WRIST_NAMES: tuple[str, ...] = ("wrist_x", "wrist_y", "wrist_z")
@@ -79,6 +80,14 @@ def wrist_rotation(angles: np.ndarray) -> np.ndarray:
     out[..., 2, 1] = cy * sx
     out[..., 2, 2] = cy * cx
     return out
+
+
+def rotation_to_wrist_angles(rot: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`grasp_apso.model.hand.wrist_rotation`: (P, 3, 3) -> (P, 3) rad."""
+    ty = -np.arcsin(np.clip(rot[:, 2, 0], -1.0, 1.0))
+    tx = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
+    tz = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+    return np.stack([tx, ty, tz], axis=1)
 
 
 def dh_transform(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
@@ -201,7 +210,7 @@ class HandModel:
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] < 15:
             raise ValueError(f"q: expected (P, 15) or (P, 18), got {q.shape}")
-        theta = q[:, :15].reshape(-1, N_FINGERS, 3)
+        theta = LAYOUT.finger_values(q)
         t1, t2, t3 = theta[..., 0], theta[..., 1], theta[..., 2]
         frames = np.empty(theta.shape[:2] + (4, 4, 4))
         for f in range(N_FINGERS):
@@ -283,7 +292,7 @@ class HandModel:
         q : (P, 18) float, rad -> (P, 5, 3) float, m
         """
         q = np.asarray(q, dtype=float)
-        theta = q[:, :15].reshape(-1, N_FINGERS, 3)
+        theta = LAYOUT.finger_values(q)
         origin, ex, ey = self.flexion_planes(theta[..., 2])
         uv = self.planar_chain(theta[..., 0], theta[..., 1], np.array([[2, 1.0]]))[..., 0, :]
         return origin + uv[..., :1] * ex + uv[..., 1:] * ey

@@ -1,7 +1,7 @@
 """The paper's four test objects as procedural triangle meshes (section 5).
 
 Each builder returns raw ``(vertices, triangles)`` arrays in metres, the sphere, cube
-and barrel centred on the origin; :func:`grasp_apso.objects.builtin` validates them and
+and barrel centred on the origin; :func:`grasp_apso.model.builtin.builtin` validates them and
 moves the centre of mass to the origin (it shifts the fish along x). The sizes are the
 paper's:
 
@@ -226,7 +226,7 @@ def fish() -> tuple[np.ndarray, np.ndarray]:
     forked trailing edge (its top and bottom lobes reach 45 % of the fin length further
     back than its middle). The nose closes with a fan to the tip, the trailing edge with
     a thin strip. The nose tip is at x = 0.29 m, the tail lobe tips at x = 0:
-    :func:`grasp_apso.objects.builtin` shifts the vertices along x to put the centre of
+    :func:`grasp_apso.model.builtin.builtin` shifts the vertices along x to put the centre of
     mass at the origin (the shape is symmetric about y = 0 and z = 0).
 
     Returns

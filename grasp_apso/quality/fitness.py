@@ -17,14 +17,14 @@ in [0, 1] (weights 0.20, 0.15, 0.35, 0.20, 0.10), with
   ignores torques and friction, so it accepts grasps that cannot hold and rejects
   four-finger-and-thumb grasps that can. ``1 - min(1, r)`` with ``r`` the distance from
   the origin to the convex hull of the contacts' unit normal wrenches
-  (:func:`grasp_apso.quality.normal_wrench_residual`): 0 when a squeeze along the
+  (:func:`grasp_apso.quality.measures.normal_wrench_residual`): 0 when a squeeze along the
   contact normals in which every contact carries at least a quarter of the mean load
   balances force and torque, which with friction and three or more non-collinear
   contacts is force closure. Collinear contacts balance without being
   force closure, so for nc >= 3 the term is scaled by ``min(1, (1 - Q) / 0.5)`` (full
   for polygons better than Q = 0.5) and for nc = 2 by 0.5;
 - ``count``: ``(nc - 1) / 4``, more fingertip contacts are better (2 -> 0.25, 5 -> 1);
-- ``factor``: the GRG shape parameter factor's term (see :mod:`grasp_apso.grg`): how well
+- ``factor``: the GRG shape parameter factor's term (see :mod:`grasp_apso.search.grg`): how well
   the wrist matches the approach of the object's shape class, in [0, 1].
 
 An *inactive* particle (nc < 2, or illegal: a blocked finger, a link penetrating the
@@ -43,9 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import quality_kernels
-from .contacts import DecodedGrasps, GraspModel
-from .quality import COINCIDENT_ATOL, COINCIDENT_RTOL
+from . import kernels as quality_kernels
+from ..geometry.decoder import DecodedGrasps, GraspModel
+from .measures import COINCIDENT_ATOL, COINCIDENT_RTOL
 
 W_SHAPE = 0.20
 W_BALANCE = 0.15
@@ -80,7 +80,7 @@ def evaluate(
     model : GraspModel
     decoded : DecodedGrasps, batch of P
     factor : (P,) float in [0, 1]
-        Shape-class term for each particle's wrist (:meth:`grasp_apso.grg.ShapeClass.wrist_score`).
+        Shape-class term for each particle's wrist (:meth:`grasp_apso.search.grg.ShapeClass.wrist_score`).
     mu : float
         Friction coefficient.
     """
@@ -91,7 +91,7 @@ def evaluate(
     n = len(nc)
     shape, balance, residual = np.empty(n), np.empty(n), np.empty(n)
     # Every term in one compiled loop over the particles (the functions of
-    # grasp_apso.quality compute the same, with their input checks).
+    # grasp_apso.quality.measures.measures compute the same, with their input checks).
     quality_kernels.fitness_terms(
         np.ascontiguousarray(decoded.contact_points), np.ascontiguousarray(decoded.contact_normals),
         np.ascontiguousarray(mask), active, np.asarray(model.obj.center_of_mass, dtype=np.float64),

@@ -6,13 +6,13 @@ rotation and ``T[:3, 3]`` the position. The planner works in the object frame; t
 object pose (object -> planning frame) is applied to its results only.
 
 - :func:`pose_to_matrix` -- pose -> transform; a quaternion whose norm is not 1 within
-  :data:`QUATERNION_NORM_TOLERANCE` is rejected (:class:`~grasp_apso.objects.ObjectError`
+  :data:`QUATERNION_NORM_TOLERANCE` is rejected (:class:`~grasp_apso.errors.ObjectError`
   naming the request field), not silently normalised.
 - :func:`matrix_to_pose` -- rigid transform -> pose (quaternion with w >= 0).
 - :func:`transform_points` / :func:`transform_vectors` -- apply a transform to points
   (rotation and translation) or to directions (rotation only).
 
-All are also importable from :mod:`grasp_apso.objects`.
+All are also importable from :mod:`grasp_apso.model.objects`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .objects import ObjectError
+from ..errors import ObjectError
 
 __all__ = [
     "QUATERNION_NORM_TOLERANCE",

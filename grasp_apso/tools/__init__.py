@@ -1,0 +1,1 @@
+"""Command-line tools without ROS: the planner CLI, printed summaries and pictures."""
