@@ -22,11 +22,12 @@ setup(
     packages=find_packages(include=[package_name, package_name + '.*']),
     # Hand description and other data read through importlib.resources, so they work
     # without the ament index (pip install, pip install -e, colcon).
-    package_data={package_name: ['data/*.yaml']},
+    package_data={package_name: ['data/*.yaml', 'data/meshes/*.stl', 'data/meshes/*.json', 'data/meshes/*.md']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + package_name + '/urdf', sorted(glob('urdf/*.urdf'))),
     ],
     # Dependencies are declared in package.xml (rosdep) and pinned in requirements.txt
     # (venv set-up); listing them here would make console scripts of a colcon install
@@ -44,6 +45,7 @@ setup(
         'console_scripts': [
             'planner_node = grasp_apso.ros.node:main',
             'grasp_apso_plan = grasp_apso.tools.cli:main',
+            'grasp_apso_urdf = grasp_apso.tools.urdf_cli:main',
         ],
     },
 )
