@@ -10,7 +10,7 @@ Rerunnable, not a test::
 For each object:
 
 * prep: ``make_grasp_model(hand, obj)`` with the grid cache cleared
-  (``grasp_apso.geometry.sdf._CACHE``), i.e. the cold grid build a first plan on a new mesh pays;
+  (``grasp_apso.geometry.sdf.GRID_CACHE``), i.e. the cold grid build a first plan on a new mesh pays;
   the best of ``--prep-runs`` runs (least disturbed by other processes);
 * decode: ``decode(model, x)`` on GRG-like batches (random wrist angles and pivots, flexion
   pre-shapes in the lower third of their range, standoff offset 0..2 cm; seeded), after
@@ -68,8 +68,7 @@ def time_prep(hand, obj, runs: int):
     times = []
     model = None
     for _ in range(runs):
-        with sdf_module._CACHE_LOCK:
-            sdf_module._CACHE.clear()
+        sdf_module.GRID_CACHE.clear()
         t0 = time.perf_counter()
         model = make_grasp_model(hand, obj)
         times.append(time.perf_counter() - t0)

@@ -231,4 +231,5 @@ def test_cache_returns_the_same_object_for_the_same_key(grids) -> None:
     assert cached_sdf_grid(mesh, key, **SMALL) is other
     assert cached_sdf_grid(mesh, key, **GRID_KWARGS) is first
     # the cache is bounded
-    assert len(sdf_module._CACHE) <= sdf_module._CACHE_SIZE
+    assert len(sdf_module.GRID_CACHE) <= sdf_module.GRID_CACHE.max_entries
+    assert sdf_module.GRID_CACHE.stats().nbytes <= sdf_module.GRID_CACHE.max_bytes

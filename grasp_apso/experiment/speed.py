@@ -32,8 +32,7 @@ def _clear_caches() -> None:
     from ..search import planner
     from ..geometry import sdf
 
-    with sdf._CACHE_LOCK:
-        sdf._CACHE.clear()
+    sdf.GRID_CACHE.clear()
     with planner._BVH_LOCK:
         planner._BVH_CACHE.clear()
 

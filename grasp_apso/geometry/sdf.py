@@ -22,8 +22,6 @@ nothing is decided. Negative values are inside the object. Grids are cached by m
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,6 +30,7 @@ import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from ..cache import BoundedCache
 from . import kernels
 
 @dataclass(frozen=True)
@@ -280,22 +279,13 @@ def build_sdf_grid(
     return SignedDistanceGrid(origin=origin, spacing=spacing, values=grid)
 
 
-_CACHE: "OrderedDict[tuple, SignedDistanceGrid]" = OrderedDict()
-_CACHE_LOCK = threading.Lock()
-_CACHE_SIZE = 8
+#: Signed-distance grids by (mesh hash, options): at most 8, at most 256 MB (a 10k-triangle
+#: mesh's grid is a few MB; the bound keeps a stream of distinct large meshes from growing
+#: the process).
+GRID_CACHE: "BoundedCache[SignedDistanceGrid]" = BoundedCache(max_entries=8, max_bytes=256 * 1024 * 1024)
 
 
 def cached_sdf_grid(mesh: trimesh.Trimesh, key: str, **kwargs) -> SignedDistanceGrid:
     """:func:`build_sdf_grid` memoised by ``key`` (the mesh hash) and the options."""
     cache_key = (key, tuple(sorted(kwargs.items())))
-    with _CACHE_LOCK:
-        grid = _CACHE.get(cache_key)
-        if grid is not None:
-            _CACHE.move_to_end(cache_key)
-            return grid
-    grid = build_sdf_grid(mesh, **kwargs)
-    with _CACHE_LOCK:
-        _CACHE[cache_key] = grid
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
-    return grid
+    return GRID_CACHE.get_or_create(cache_key, lambda: build_sdf_grid(mesh, **kwargs))
