@@ -1,0 +1,121 @@
+"""The parameters of the simulation check (:class:`SimulationSettings`), apart from the
+protocol so that the MJCF builder and the protocol both use them without a cycle."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import InputError
+from .convex import ConvexSettings
+
+__all__ = ["SimulationSettings"]
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """Parameters of the simulation check (SI units).
+
+    Attributes
+    ----------
+    object_mass : float, kg
+        0.1 unless given (DESIGN.md).
+    friction : float
+        Sliding friction coefficient of every contact: the planner's mu, 0.5.
+    torsional_friction, rolling_friction : float, m
+        MuJoCo's torsional (used with condim >= 4) and rolling (condim 6) coefficients.
+    condim : int
+        4 (sliding + torsional friction) or 6 (+ rolling); 3 is accepted too.
+    disturbance : float, m/s^2
+        Acceleration of the disturbance (force = object_mass * disturbance).
+    duration : float, s
+        Disturbance time per direction.
+    max_shift : float, m
+        Held only if the centre of mass moves less than this in every direction.
+    max_turn : float, rad
+        ... and the object turns less than this.
+    squeeze : float, rad
+        Extra flexion beyond the grasp posture (clipped to the limits).
+    close_time, squeeze_time, settle_time : float, s
+        Durations of the closing ramp, the squeeze ramp and the hold before the tests.
+    max_settle_time : float, s; rest_speed : float, m/s; rest_spin : float, rad/s
+        After ``settle_time`` the hold goes on until the object rests (its speed and spin
+        below these) or ``max_settle_time`` has passed: the squeeze leaves a transient
+        (fingertips rolling the object into force balance) that decays in about 1 s and
+        would otherwise be counted as the disturbance's motion (measured on the plan's
+        sphere grasp: 5.7 mm / 9.9 deg of drift in 2 s with no disturbance after a 0.2 s
+        hold, 2.0 mm / 4.1 deg after 1 s).
+    timestep : float, s
+        4 ms: with the contact time constant ``solref[0]`` = 20 ms the contacts are
+        resolved over 5 steps (MuJoCo advises >= 2) and a whole check (12.6 to 13.4 s
+        of simulated time, 3,150 to 3,350 steps) fits the 0.25 s budget per candidate:
+        median 206 ms (167-444 ms) over 20 planned grasps on the four built-in objects
+        on the shared 2-core machine (``bench/bench_simulation.py``). Checked against
+        2 ms on the known-outcome grasps of ``test/test_simulation.py``: same verdicts.
+    check_every : float, s
+        How often the shift and turn are measured during a disturbance.
+    kp : float, N m / rad
+        Position gain of the finger servos (a fingertip force of a few newtons for the
+        squeeze: 2 N m/rad * 0.14 rad / 0.07 m ~ 4 N).
+    max_torque : float, N m
+        Servo torque limit.
+    joint_damping : float, N m s / rad; joint_armature : float, kg m^2
+        Critically damped servos: damping ~ 2 sqrt(kp * armature).
+    impratio : float
+        Frictional-to-normal impedance ratio (elliptic cones).
+    solref, solimp : tuple of float
+        MuJoCo contact softness (time constant, damping ratio) and impedance.
+    decomposition : ConvexSettings
+        CoACD parameters for non-convex objects.
+    """
+
+    object_mass: float = 0.1
+    friction: float = 0.5
+    torsional_friction: float = 0.005
+    rolling_friction: float = 0.0001
+    condim: int = 4
+    disturbance: float = 10.0
+    duration: float = 2.0
+    max_shift: float = 0.05
+    max_turn: float = math.radians(15.0)
+    squeeze: float = math.radians(8.0)
+    close_time: float = 0.3
+    squeeze_time: float = 0.1
+    settle_time: float = 0.2
+    max_settle_time: float = 1.0
+    rest_speed: float = 0.002
+    rest_spin: float = 0.05
+    timestep: float = 0.004
+    check_every: float = 0.04
+    kp: float = 2.0
+    max_torque: float = 1.0
+    joint_damping: float = 0.1
+    joint_armature: float = 0.001
+    impratio: float = 10.0
+    solref: tuple[float, float] = (0.02, 1.0)
+    solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)
+    decomposition: ConvexSettings = field(default_factory=ConvexSettings)
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "object_mass": (1e-4, 100.0), "friction": (1e-3, 5.0), "torsional_friction": (0.0, 0.1),
+            "rolling_friction": (0.0, 0.1), "disturbance": (0.0, 1000.0), "duration": (1e-3, 60.0),
+            "max_shift": (1e-4, 10.0), "max_turn": (1e-4, math.pi), "squeeze": (0.0, 0.5),
+            "close_time": (0.0, 10.0), "squeeze_time": (0.0, 10.0), "settle_time": (0.0, 10.0),
+            "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
+            "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
+            "max_torque": (1e-3, 1e3), "joint_damping": (0.0, 1e3), "joint_armature": (0.0, 1.0),
+            "impratio": (1.0, 100.0),
+        }
+        for name, (low, high) in ranges.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or not low <= value <= high:
+                raise InputError(f"settings.{name}: {value!r} must be a number in [{low}, {high}]")
+        if self.condim not in (3, 4, 6):
+            raise InputError(f"settings.condim: {self.condim!r} must be 3, 4 or 6")
+        if len(self.solref) != 2 or len(self.solimp) != 3 or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in (*self.solref, *self.solimp)):
+            raise InputError("settings.solref/solimp: expected 2 and 3 finite numbers")
+        if not isinstance(self.decomposition, ConvexSettings):
+            raise InputError("settings.decomposition: expected a ConvexSettings")
