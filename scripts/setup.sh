@@ -181,6 +181,7 @@ fi
 say "5/6 grasp_apso package (pip install .)"
 PKG_INPUTS=(setup.py setup.cfg package.xml resource grasp_apso)
 [ -d config ] && PKG_INPUTS+=(config)
+[ -d urdf ] && PKG_INPUTS+=(urdf)
 PKG_HASH="$(hash_inputs "$DEPS_HASH" "${PKG_INPUTS[@]}")"
 if stamp_ok package "$PKG_HASH" && "$VPY" -m pip show -q grasp_apso >/dev/null 2>&1; then
   say "    up to date"
