@@ -182,6 +182,9 @@ TUNABLES: tuple[Tunable, ...] = (
        unit="bytes", scope="node", read_only=True),
     _t("queue_length", int, 4, "Requests that may wait behind the running plans; more are answered "
        "'busy' at once.", 0, 1000, scope="node", read_only=True),
+    _t("workers", int, 1, "Plans that run at the same time, each on a thread of its own (the "
+       "kernels release the GIL); more requests wait in the queue.", 1, 16, scope="node",
+       read_only=True),
     _t("plan_timeout", float, 60.0, "Seconds a request may spend in the worker (reading, validation, "
        "preparation, planning); it is answered 'timed out' naming the stage. 0 = no limit.",
        0.0, 86400.0, unit="s", scope="node"),

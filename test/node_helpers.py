@@ -259,3 +259,83 @@ class LineReader:
     def text(self):
         with self._cond:
             return '\n'.join(l for l in self.lines if l is not None)
+
+
+def burst_calls(context, service, requests, n_clients, timeout):
+    """Send ``requests`` (a list of lists: one list per client) all at once from
+    ``n_clients`` client nodes, each spun by an executor of its own (clients sharing one
+    multi-threaded executor can lose replies on their own side), and wait for every
+    answer (bounded by ``timeout`` s in all).
+
+    Returns a list of (response or None, latency s) in request order.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from grasp_apso_interfaces.srv import PlanGrasp
+
+    nodes, executors, threads, clients = [], [], [], []
+    for i in range(n_clients):
+        node = rclpy.create_node(f'burst_client_{os.getpid()}_{i}', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        clients.append(node.create_client(PlanGrasp, service))
+        thread = threading.Thread(target=executor.spin, daemon=True)
+        thread.start()
+        nodes.append(node)
+        executors.append(executor)
+        threads.append(thread)
+    try:
+        for client in clients:
+            if not client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT):
+                raise TimeoutError(f'{service} not found')
+        done = threading.Condition()
+        results = {}
+        t0 = time.monotonic()
+        futures = []
+        for c, (client, batch) in enumerate(zip(clients, requests)):
+            for r, req in enumerate(batch):
+                future = client.call_async(req)
+
+                def finished(f, key=(c, r)):
+                    with done:
+                        results[key] = (f.result(), time.monotonic() - t0)
+                        done.notify_all()
+                future.add_done_callback(finished)
+                futures.append(((c, r), future))
+        total = len(futures)
+        deadline = t0 + timeout
+        with done:
+            while len(results) < total and time.monotonic() < deadline:
+                done.wait(max(0.0, min(0.5, deadline - time.monotonic())))
+        return [results.get(key, (None, None)) for key, _ in futures]
+    finally:
+        for executor in executors:
+            executor.shutdown(timeout_sec=5.0)
+        for thread in threads:
+            thread.join(timeout=5.0)
+        for node in nodes:
+            node.destroy_node()
+
+
+# A client that sends three plans and is then stopped (Ctrl-C) before any answer.
+DYING_CLIENT_SCRIPT = r'''
+import sys
+import rclpy
+from grasp_apso_interfaces.srv import PlanGrasp
+rclpy.init()
+node = rclpy.create_node("dying_client")
+client = node.create_client(PlanGrasp, sys.argv[1])
+assert client.wait_for_service(timeout_sec=15.0)
+for _ in range(3):
+    req = PlanGrasp.Request()
+    req.object_name = "sphere"
+    req.object_pose.header.frame_id = "world"
+    req.object_pose.pose.orientation.w = 1.0
+    req.particles, req.iterations = 20, 10000
+    client.call_async(req)
+print("sent", flush=True)
+try:
+    rclpy.spin(node)
+except BaseException:
+    pass
+'''

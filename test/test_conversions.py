@@ -13,9 +13,12 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 from std_msgs.msg import Header  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from grasp_apso import conversions, objects  # noqa: E402
+from grasp_apso.model import builtin as builtin_objects  # noqa: E402
+from grasp_apso.model import poses  # noqa: E402
+from grasp_apso.ros import conversions, markers as ros_markers  # noqa: E402
+from grasp_apso.model.scene import BOX, Scene  # noqa: E402
 from grasp_apso.model.hand import JOINT_NAMES, load_hand  # noqa: E402
-from grasp_apso.errors import ObjectError# noqa: E402
+from grasp_apso.errors import ObjectError  # noqa: E402
 from grasp_apso.search.planner import IterationStats, PlanOptions, plan  # noqa: E402
 
 
@@ -133,7 +136,7 @@ def test_progress_msg():
 def test_grasp_markers(planned):
     _, result = planned
     header = Header(frame_id='table')
-    markers = conversions.grasp_markers(result, header, load_hand()).markers
+    markers = ros_markers.grasp_markers(result, header, load_hand()).markers
     assert markers[0].action == Marker.DELETEALL
     assert all(m.header.frame_id == 'table' for m in markers)
     ids = [(m.ns, m.id) for m in markers[1:]]
@@ -145,4 +148,67 @@ def test_grasp_markers(planned):
     assert np.allclose([[p.x, p.y, p.z] for p in tips.points], result.joints[:, -1])
     normals = [m for m in markers if m.ns == 'grasp_apso/normals']
     assert len(normals) == result.n_contacts and all(m.type == Marker.ARROW for m in normals)
-    serialize_message(conversions.grasp_markers(result, header, load_hand()))
+    serialize_message(ros_markers.grasp_markers(result, header, load_hand()))
+
+
+def test_grasps_field_by_field_and_top_level_is_the_first(planned):
+    pose, result = planned
+    header = Header(frame_id='table')
+    msg = conversions.fill_result(PlanGrasp.Response(), result, header)
+    assert msg.grasp_source == 'planned'
+    assert len(msg.grasps) == len(result.candidates) >= 1
+    for g, c in zip(msg.grasps, result.candidates):
+        assert g.id == c.id
+        assert list(g.grasp_posture.name) == list(JOINT_NAMES) == list(g.pre_grasp_posture.name)
+        assert np.allclose(g.grasp_posture.position, c.joint_positions)
+        assert np.allclose(g.pre_grasp_posture.position, c.pre_grasp_positions)
+        for stamped, matrix in ((g.grasp_pose, c.wrist_pose), (g.pre_grasp_pose, c.pre_grasp_pose)):
+            assert stamped.header.frame_id == 'table'
+            p, q = stamped.pose.position, stamped.pose.orientation
+            assert np.allclose(poses.pose_to_matrix([p.x, p.y, p.z], [q.x, q.y, q.z, q.w]), matrix, atol=1e-9)
+        v = g.approach_direction.vector
+        assert g.approach_direction.header.frame_id == 'table'
+        assert np.allclose([v.x, v.y, v.z], c.approach) and math.isclose(np.linalg.norm([v.x, v.y, v.z]), 1.0)
+        # The pre-grasp lies approach_distance back along the approach.
+        back = np.array([g.grasp_pose.pose.position.x - g.pre_grasp_pose.pose.position.x,
+                         g.grasp_pose.pose.position.y - g.pre_grasp_pose.pose.position.y,
+                         g.grasp_pose.pose.position.z - g.pre_grasp_pose.pose.position.z])
+        assert np.allclose(back, g.approach_distance * np.array([v.x, v.y, v.z]), atol=1e-9)
+        assert g.sim_result == c.sim_result and g.contact_fingers == [x.finger for x in c.contacts]
+    first = msg.grasps[0]
+    assert list(msg.configuration.position) == list(first.grasp_posture.position)
+    assert msg.wrist_pose == first.grasp_pose
+    assert msg.fitness == first.fitness and msg.epsilon_quality == first.epsilon_quality
+    assert msg.contact_points == first.contact_points
+    serialize_message(msg)
+
+
+def test_markers_show_scene_approach_and_pre_grasp(planned):
+    _, result = planned
+    scene = Scene.from_primitives(planes=[(0, 0, 1, 0.0)], obstacles=[(BOX, (0.1, 0.1, 0.1))],
+                                  obstacle_poses=[np.eye(4)])
+    markers = ros_markers.grasp_markers(result, Header(frame_id='table'), load_hand(), scene).markers
+    by_ns = {}
+    for m in markers[1:]:
+        by_ns.setdefault(m.ns, []).append(m)
+    assert len(by_ns['grasp_apso/scene']) == 1 and by_ns['grasp_apso/scene'][0].type == Marker.CUBE
+    table = by_ns['grasp_apso/scene'][0]
+    assert table.scale.z == ros_markers.PLANE_THICKNESS and table.scale.x >= 0.5
+    assert math.isclose(table.pose.position.z, -ros_markers.PLANE_THICKNESS / 2)  # on the solid side
+    assert len(by_ns['grasp_apso/obstacles']) == 1
+    assert len(by_ns['grasp_apso/approach']) == len(result.candidates)
+    assert {'grasp_apso/pre_grasp_palm', 'grasp_apso/pre_grasp_links'} <= set(by_ns)
+    assert all(m.color.a < 0.5 for m in by_ns['grasp_apso/pre_grasp_links'])
+    # One palette with the pictures.
+    from grasp_apso.tools import palette, plotting
+    assert plotting.FINGER_COLORS is palette.FINGER_COLORS
+    thumb = by_ns['grasp_apso/links'][4].color
+    assert np.allclose([thumb.r, thumb.g, thumb.b], palette.rgb(palette.FINGER_COLORS['thumb']))
+    serialize_message(ros_markers.grasp_markers(result, Header(frame_id='table'), load_hand(), scene))
+
+
+def test_progress_msg_distinct_candidates():
+    stats = IterationStats(iteration=1, iterations=2, best_fitness=0.5, mean_fitness=0.1,
+                           active_particles=3, best_contacts=3, evaluations=6, elapsed=0.1)
+    expected = int(getattr(stats, 'distinct_candidates', 0))
+    assert conversions.progress_msg(stats, 'a', 'apso', Header()).distinct_candidates == expected

@@ -28,10 +28,12 @@ from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 from node_helpers import (  # noqa: E402
     DISCOVERY_TIMEOUT, ProgressCounter, SpinningNode, identity_pose, table_pose, wait_for, wait_future)
 
-from grasp_apso import objects  # noqa: E402
+from grasp_apso.model import builtin as builtin_objects  # noqa: E402
+from grasp_apso.model import objects  # noqa: E402
 from grasp_apso.ros.conversions import arrays_to_mesh, arrays_to_packed  # noqa: E402
 from grasp_apso.model.hand import FINGER_NAMES, JOINT_NAMES, load_hand  # noqa: E402
 from grasp_apso.ros.node import PARAMETER_NAMES, PARAMETERS, GraspPlannerNode  # noqa: E402
+from grasp_apso.ros.parameters import READ_ONLY  # noqa: E402
 
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
 
@@ -40,26 +42,34 @@ CALL_TIMEOUT = 60.0
 
 
 class Harness:
-    """The node and a client node, each spun by its own executor.
+    """The nodes and a client node, each spun by its own executor.
 
-    Every entity of the client node lives as long as the module (see
-    :class:`node_helpers.SpinningNode` for why nothing is destroyed while it spins);
+    ``main`` is the node most tests use; ``strict`` (max_mesh_triangles 4, mesh files
+    disabled, queue_length 0) and ``small_files`` (max_mesh_bytes 100) hold the read-only
+    limits other cases need. Every entity of the client node lives as long as the module
+    (see :class:`node_helpers.SpinningNode` for why nothing is destroyed while it spins);
     tests that need short-lived entities make a ``SpinningNode`` of their own.
     """
 
-    def __init__(self, context, server, client, mesh_dir):
+    def __init__(self, context, servers, client, mesh_dir):
         from rcl_interfaces.srv import GetParameters, SetParameters
 
         self.context = context
-        self.server = server
-        self.node = server.node
+        self.servers = servers
+        self.server = servers['main']
+        self.node = self.server.node
+        self.nodes = {k: v.node for k, v in servers.items()}
         self.client_spinner = client
         self.client_node = client.node
         self.mesh_dir = mesh_dir
-        self.client = self.client_node.create_client(PlanGrasp, '/grasp_apso/plan_grasp')
+        self.clients = {k: self.client_node.create_client(PlanGrasp, f'/{v.node.get_name()}/plan_grasp')
+                        for k, v in servers.items()}
+        self.client = self.clients['main']
         self.set_params_client = self.client_node.create_client(SetParameters, '/grasp_apso/set_parameters')
         self.get_params_client = self.client_node.create_client(GetParameters, '/grasp_apso/get_parameters')
-        self.action_client = ActionClient(self.client_node, PlanGraspAction, '/grasp_apso/plan_grasp')
+        self.action_clients = {k: ActionClient(self.client_node, PlanGraspAction, f'/{v.node.get_name()}/plan_grasp')
+                               for k, v in servers.items()}
+        self.action_client = self.action_clients['main']
         self.progress = ProgressCounter()
         self.progress_sub = self.client_node.create_subscription(
             GraspProgress, '/grasp_apso/progress', self.progress,
@@ -67,14 +77,14 @@ class Harness:
 
     def wait(self, future, timeout=CALL_TIMEOUT, extra=()):
         """The future's result; fails at once when an executor of the harness died."""
-        return wait_future(future, timeout, spinners=(self.server, self.client_spinner, *extra))
+        return wait_future(future, timeout, spinners=(*self.servers.values(), self.client_spinner, *extra))
 
-    def call(self, request, timeout=CALL_TIMEOUT):
-        return self.wait(self.client.call_async(request), timeout)
+    def call(self, request, timeout=CALL_TIMEOUT, node='main'):
+        return self.wait(self.clients[node].call_async(request), timeout)
 
-    def set_parameters(self, **values):
+    def set_parameters(self, node='main', **values):
         """Set node parameters through the node API (the same callbacks as over ROS)."""
-        results = self.node.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        results = self.nodes[node].set_parameters([Parameter(k, value=v) for k, v in values.items()])
         assert all(r.successful for r in results), [r.reason for r in results]
 
 
@@ -120,30 +130,44 @@ def mesh_dir(tmp_path_factory):
     return allowed
 
 
+#: The extra nodes of the module and their (read-only) limits.
+EXTRA_NODES = {
+    'strict': dict(max_mesh_triangles=4, allowed_mesh_dir='', queue_length=0),
+    'small_files': dict(max_mesh_bytes=100, allowed_mesh_dir=None),  # None: the mesh dir
+    'pair': dict(workers=2, queue_length=0),
+}
+
+
 @pytest.fixture(scope='module')
 def ros(mesh_dir):
     context = rclpy.context.Context()
     rclpy.init(context=context)
-    node = GraspPlannerNode(context=context, parameter_overrides=[
-        Parameter('queue_length', value=2),
-        Parameter('allowed_mesh_dir', value=str(mesh_dir)),
-        Parameter('particles', value=20),
-        Parameter('iterations', value=8),
-    ])
-    server = SpinningNode(context, 'grasp_apso', num_threads=4, node=node)
+    common = dict(particles=20, iterations=8)
+    configs = {'main': dict(queue_length=2, allowed_mesh_dir=str(mesh_dir)), **EXTRA_NODES}
+    servers = {}
+    for key, config in configs.items():
+        values = {**common, **{k: (str(mesh_dir) if v is None else v) for k, v in config.items()}}
+        name = 'grasp_apso' if key == 'main' else f'grasp_apso_{key}'
+        node = GraspPlannerNode(name, context=context,
+                                parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+        servers[key] = SpinningNode(context, name, num_threads=4, node=node)
     client = SpinningNode(context, 'grasp_apso_test_client')
-    harness = Harness(context, server, client, mesh_dir)  # entities first, then spin
-    server.start()
+    harness = Harness(context, servers, client, mesh_dir)  # entities first, then spin
+    for server in servers.values():
+        server.start()
     client.start()
     try:
-        assert harness.client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), 'service not found'
-        assert harness.action_client.wait_for_server(timeout_sec=DISCOVERY_TIMEOUT), 'action not found'
+        for key in servers:
+            assert harness.clients[key].wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), f'{key}: service not found'
+            assert harness.action_clients[key].wait_for_server(timeout_sec=DISCOVERY_TIMEOUT), f'{key}: no action'
         # Progress is volatile: make sure the node's publisher has matched our subscriber.
+        node = harness.node
         assert wait_for(lambda: node._progress_pub.get_subscription_count() >= 1
                         and harness.progress_sub.get_publisher_count() >= 1, DISCOVERY_TIMEOUT)
         yield harness
     finally:
-        server.close()
+        for server in servers.values():
+            server.close()
         client.close()
         rclpy.shutdown(context=context)
 
@@ -322,88 +346,146 @@ def _both_sources(req, _dir):
     req.object_name = 'cube'
 
 
+def _plane(a, b, c, d):
+    from shape_msgs.msg import Plane
+    return Plane(coef=[float(a), float(b), float(c), float(d)])
+
+
+def _obstacle(kind, dims, position=(0.3, 0.0, 0.0), quat=(0.0, 0.0, 0.0, 1.0)):
+    from geometry_msgs.msg import Pose
+    from shape_msgs.msg import SolidPrimitive
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in quat)
+    return SolidPrimitive(type=kind, dimensions=[float(d) for d in dims]), pose
+
+
+def _with_scene(planes=(), obstacles=(), poses=None, **fields):
+    """The built-in cube (edge 7 cm, centred at the origin) in a scene."""
+    def edit(req, _dir):
+        req.object_name = 'cube'
+        req.support_planes = [_plane(*p) for p in planes]
+        built = [_obstacle(*o) for o in obstacles]
+        req.obstacles = [b[0] for b in built]
+        req.obstacle_poses = [b[1] for b in built] if poses is None else poses(built)
+        for key, value in fields.items():
+            setattr(req, key, value)
+    return edit
+
+
+TABLE = (0.0, 0.0, 1.0, 0.035)  # the cube's bottom face rests on it
+NAN, INF = float('nan'), float('inf')
+BOX, SPHERE, CYLINDER, CONE = 1, 2, 3, 4
+
 # (id, edit of a request that starts with no object, key words of the message,
 #  node parameters set for the case)
 BAD_INPUT = [
-    ('no_object_empty_mesh', lambda req, d: None, ['empty', 'exactly one'], {}),
-    ('two_sources', _both_sources, ['exactly one', 'mesh', 'object_name'], {}),
-    ('mesh_without_triangles', _with_mesh(TETRA_V, np.zeros((0, 3), int)), ['mesh', 'empty'], {}),
-    ('nan_vertex', _with_mesh([(float('nan'), 0, 0)] + TETRA_V[1:], TETRA_T), ['mesh', 'NaN'], {}),
-    ('inf_vertex', _with_mesh(TETRA_V[:3] + [(0, 0, float('inf'))], TETRA_T), ['mesh', 'infinite'], {}),
-    ('index_out_of_range', _with_mesh(TETRA_V, TETRA_T[:3] + [(1, 2, 99)]), ['mesh', 'out of range'], {}),
+    ('no_object_empty_mesh', lambda req, d: None, ['empty', 'exactly one'], 'main'),
+    ('two_sources', _both_sources, ['exactly one', 'mesh', 'object_name'], 'main'),
+    ('mesh_without_triangles', _with_mesh(TETRA_V, np.zeros((0, 3), int)), ['mesh', 'empty'], 'main'),
+    ('nan_vertex', _with_mesh([(float('nan'), 0, 0)] + TETRA_V[1:], TETRA_T), ['mesh', 'NaN'], 'main'),
+    ('inf_vertex', _with_mesh(TETRA_V[:3] + [(0, 0, float('inf'))], TETRA_T), ['mesh', 'infinite'], 'main'),
+    ('index_out_of_range', _with_mesh(TETRA_V, TETRA_T[:3] + [(1, 2, 99)]), ['mesh', 'out of range'], 'main'),
     ('degenerate_mesh', _with_mesh([(0, 0, 0), (0.01, 0, 0), (0.02, 0, 0), (0.03, 0, 0)],
-                                   [(0, 1, 2), (1, 2, 3)]), ['mesh', 'degenerate'], {}),
+                                   [(0, 1, 2), (1, 2, 3)]), ['mesh', 'degenerate'], 'main'),
     ('flat_mesh', _with_mesh([(0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0), (0, 0.05, 0)],
-                             [(0, 1, 2), (0, 2, 3)]), ['mesh', 'flat'], {}),
+                             [(0, 1, 2), (0, 2, 3)]), ['mesh', 'flat'], 'main'),
     ('mesh_over_size_limit', _box((0.05, 0.05, 0.05)), ['mesh', '12 triangles', 'limit', 'max_mesh_triangles'],
-     {'max_mesh_triangles': 4}),
-    ('zero_quaternion', _with_quaternion(0.0, 0.0, 0.0, 0.0), ['object_pose', 'zero quaternion'], {}),
-    ('non_unit_quaternion', _with_quaternion(0.0, 0.0, 0.5, 0.5), ['object_pose', 'not unit'], {}),
-    ('nan_position', _with_position(float('nan'), 0.0, 0.0), ['object_pose', 'not finite'], {}),
-    ('mesh_file_missing', _with_uri('missing.stl'), ['mesh_uri', 'not found'], {}),
-    ('mesh_file_unreadable', _with_uri('garbage.stl'), ['mesh_uri', 'cannot parse'], {}),
-    ('mesh_file_is_a_directory', _with_uri('folder.stl'), ['mesh_uri', 'not a regular file'], {}),
-    ('mesh_file_empty', _with_uri('empty.obj'), ['mesh_uri', 'empty'], {}),
-    ('mesh_file_unknown_format', _with_uri('cube.xyz'), ['mesh_uri', 'unknown format'], {}),
-    ('mesh_file_outside_allowed_dir', _with(mesh_uri='/etc/hostname.stl'), ['mesh_uri', 'outside'], {}),
-    ('mesh_file_path_traversal', _with(mesh_uri='../outside/secret.stl'), ['mesh_uri', 'outside'], {}),
-    ('mesh_file_symlink_out', _with_uri('link.stl'), ['mesh_uri', 'outside'], {}),
-    ('mesh_file_uri_scheme', _with(mesh_uri='http://example.com/cube.stl'), ['mesh_uri', 'scheme'], {}),
-    ('mesh_file_over_byte_limit', _with_uri('cube.stl'), ['mesh_uri', 'exceeds the limit'],
-     {'max_mesh_bytes': 100}),
-    ('mesh_files_disabled', _with_uri('cube.stl'), ['mesh_uri', 'allowed_mesh_dir'],
-     {'allowed_mesh_dir': ''}),
-    ('particles_too_few', _with(object_name='sphere', particles=1), ['particles', 'range'], {}),
-    ('particles_too_many', _with(object_name='sphere', particles=5000), ['particles', 'range'], {}),
-    ('iterations_too_many', _with(object_name='sphere', iterations=20000), ['iterations', 'range'], {}),
-    ('unknown_algorithm', _with(object_name='sphere', algorithm='genetic'), ['algorithm', 'genetic'], {}),
-    ('unknown_object_name', _with(object_name='banana'), ['object_name', 'banana'], {}),
-    ('negative_seed', _with(object_name='sphere', seed=-5), ['seed'], {}),
+     'strict'),
+    ('zero_quaternion', _with_quaternion(0.0, 0.0, 0.0, 0.0), ['object_pose', 'zero quaternion'], 'main'),
+    ('non_unit_quaternion', _with_quaternion(0.0, 0.0, 0.5, 0.5), ['object_pose', 'not unit'], 'main'),
+    ('nan_position', _with_position(float('nan'), 0.0, 0.0), ['object_pose', 'not finite'], 'main'),
+    ('mesh_file_missing', _with_uri('missing.stl'), ['mesh_uri', 'not found'], 'main'),
+    ('mesh_file_unreadable', _with_uri('garbage.stl'), ['mesh_uri', 'garbage.stl'], 'main'),  # cannot parse or no triangles
+    ('mesh_file_is_a_directory', _with_uri('folder.stl'), ['mesh_uri', 'not a regular file'], 'main'),
+    ('mesh_file_empty', _with_uri('empty.obj'), ['mesh_uri', 'empty'], 'main'),
+    ('mesh_file_unknown_format', _with_uri('cube.xyz'), ['mesh_uri', 'unknown format'], 'main'),
+    ('mesh_file_outside_allowed_dir', _with(mesh_uri='/etc/hostname.stl'), ['mesh_uri', 'outside'], 'main'),
+    ('mesh_file_path_traversal', _with(mesh_uri='../outside/secret.stl'), ['mesh_uri', 'outside'], 'main'),
+    ('mesh_file_symlink_out', _with_uri('link.stl'), ['mesh_uri', 'outside'], 'main'),
+    ('mesh_file_uri_scheme', _with(mesh_uri='http://example.com/cube.stl'), ['mesh_uri', 'scheme'], 'main'),
+    ('mesh_file_over_byte_limit', _with_uri('cube.stl'), ['mesh_uri', 'exceeds the limit'], 'small_files'),
+    ('mesh_files_disabled', _with_uri('cube.stl'), ['mesh_uri', 'allowed_mesh_dir'], 'strict'),
+    ('particles_too_few', _with(object_name='sphere', particles=1), ['particles', 'range'], 'main'),
+    ('particles_too_many', _with(object_name='sphere', particles=5000), ['particles', 'range'], 'main'),
+    ('iterations_too_many', _with(object_name='sphere', iterations=20000), ['iterations', 'range'], 'main'),
+    ('unknown_algorithm', _with(object_name='sphere', algorithm='genetic'), ['algorithm', 'genetic'], 'main'),
+    ('unknown_object_name', _with(object_name='banana'), ['object_name', 'banana'], 'main'),
+    ('negative_seed', _with(object_name='sphere', seed=-5), ['seed'], 'main'),
     ('nan_wrist_position', lambda req, d: (_with(object_name='sphere')(req, d), _nan_wrist(req, d)),
-     ['wrist_position', 'not finite'], {}),
+     ['wrist_position', 'not finite'], 'main'),
     ('packed_vertices_not_triples', _with_packed(np.ravel(TETRA_V)[:-1], TETRA_T),
-     ['mesh_vertices', 'multiple of 3'], {}),
+     ['mesh_vertices', 'multiple of 3'], 'main'),
     ('packed_triangles_not_triples', _with_packed(TETRA_V, np.ravel(TETRA_T)[:-2]),
-     ['mesh_triangles', 'multiple of 3'], {}),
-    ('packed_vertices_without_triangles', _with_packed(TETRA_V, []), ['mesh_triangles', 'empty'], {}),
-    ('packed_triangles_without_vertices', _with_packed([], TETRA_T), ['mesh_vertices', 'empty'], {}),
-    ('packed_and_mesh', _packed_and_mesh, ['exactly one', 'mesh and mesh_vertices/mesh_triangles'], {}),
+     ['mesh_triangles', 'multiple of 3'], 'main'),
+    ('packed_vertices_without_triangles', _with_packed(TETRA_V, []), ['mesh_triangles', 'empty'], 'main'),
+    ('packed_triangles_without_vertices', _with_packed([], TETRA_T), ['mesh_vertices', 'empty'], 'main'),
+    ('packed_and_mesh', _packed_and_mesh, ['exactly one', 'mesh and mesh_vertices/mesh_triangles'], 'main'),
     ('packed_nan_vertex', _with_packed([(float('nan'), 0, 0)] + TETRA_V[1:], TETRA_T),
-     ['mesh_vertices (packed mesh)', 'vertex 0 is NaN'], {}),
+     ['mesh_vertices (packed mesh)', 'vertex 0 is NaN'], 'main'),
     ('packed_index_out_of_range', _with_packed(TETRA_V, TETRA_T[:3] + [(1, 2, 99)]),
-     ['mesh_triangles (packed mesh)', 'index 99 out of range'], {}),
+     ['mesh_triangles (packed mesh)', 'index 99 out of range'], 'main'),
     ('packed_flat', _with_packed([(0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0), (0, 0.05, 0)], [(0, 1, 2), (0, 2, 3)]),
-     ['mesh_vertices/mesh_triangles (packed mesh)', 'flat'], {}),
+     ['mesh_vertices/mesh_triangles (packed mesh)', 'flat'], 'main'),
     ('packed_over_size_limit', _with_packed(_BOX_V, _BOX_T), ['mesh_triangles', '12 triangles', 'max_mesh_triangles'],
-     {'max_mesh_triangles': 4}),
-    ('object_too_large', _box((0.5, 0.4, 0.3)), ['too large'], {}),
-    ('object_too_small', _box((0.003, 0.003, 0.003)), ['too small'], {}),
+     'strict'),
+    ('object_too_large', _box((0.5, 0.4, 0.3)), ['too large'], 'main'),
+    ('mesh_too_many_vertices', _with_mesh(TETRA_V + [(0.01 * i, 0.02, 0.03) for i in range(9)], TETRA_T),
+     ['mesh', '13 vertices', 'limit', 'max_mesh_triangles'], 'strict'),
+    ('packed_too_many_vertices', _with_packed(TETRA_V + [(0.01 * i, 0.02, 0.03) for i in range(9)], TETRA_T),
+     ['mesh_vertices', '13 vertices', 'limit'], 'strict'),
+    ('open_surface_hinge', _with_mesh([(0, 0, 0), (0.05, 0, 0), (0, 0.05, 0), (0, 0, 0.05)], [(0, 1, 2), (0, 1, 3)]),
+     ['mesh', 'open surface', 'without volume'], 'main'),
+    ('two_bodies_far_apart', _with_mesh(np.vstack([_BOX_V * 0.6, _BOX_V * 0.6 + (0.3, 0, 0)]),
+                                        np.vstack([_BOX_T, _BOX_T + len(_BOX_V)])),
+     ['mesh', '2 separate bodies', 'one object'], 'main'),
+    ('plane_zero_coefficients', _with_scene(planes=[(0, 0, 0, 0)]), ['support_planes[0]', 'zero'], 'main'),
+    ('plane_nan_coefficient', _with_scene(planes=[TABLE, (0, 0, NAN, 1)]), ['support_planes[1]', 'finite'], 'main'),
+    ('plane_inf_coefficient', _with_scene(planes=[(0, INF, 1, 1)]), ['support_planes[0]', 'finite'], 'main'),
+    ('obstacles_and_poses_differ', _with_scene(obstacles=[(BOX, (0.1, 0.1, 0.1))], poses=lambda b: []),
+     ['obstacle_poses', '1 obstacles but 0'], 'main'),
+    ('obstacle_unknown_type', _with_scene(obstacles=[(CONE, (0.1, 0.05))]), ['obstacles[0]', 'unknown primitive type'],
+     'main'),
+    ('obstacle_wrong_dimension_count', _with_scene(obstacles=[(BOX, (0.1, 0.1))]), ['obstacles[0]', 'BOX needs 3'],
+     'main'),
+    ('obstacle_zero_dimension', _with_scene(obstacles=[(SPHERE, (0.0,))]), ['obstacles[0]', 'positive'], 'main'),
+    ('obstacle_negative_dimension', _with_scene(obstacles=[(CYLINDER, (0.1, -0.02))]), ['obstacles[0]', 'positive'],
+     'main'),
+    ('obstacle_nan_dimension', _with_scene(obstacles=[(BOX, (0.1, NAN, 0.1))]), ['obstacles[0]', 'finite'], 'main'),
+    ('obstacle_pose_zero_quaternion', _with_scene(obstacles=[(BOX, (0.1, 0.1, 0.1), (0.3, 0, 0), (0, 0, 0, 0))]),
+     ['obstacle_poses[0]', 'zero quaternion'], 'main'),
+    ('obstacle_pose_non_unit_quaternion', _with_scene(obstacles=[(BOX, (0.1, 0.1, 0.1), (0.3, 0, 0), (0, 0, 1, 1))]),
+     ['obstacle_poses[0]', 'not unit'], 'main'),
+    ('negative_clearance', _with_scene(planes=[TABLE], clearance=-0.01), ['clearance', '>= 0'], 'main'),
+    ('nan_clearance', _with_scene(planes=[TABLE], clearance=NAN), ['clearance', 'finite'], 'main'),
+    ('negative_approach_distance', _with_scene(approach_distance=-0.1), ['approach_distance', '>= 0'], 'main'),
+    ('inf_approach_distance', _with_scene(approach_distance=INF), ['approach_distance', 'finite'], 'main'),
+    ('max_grasps_too_many', _with_scene(max_grasps=51), ['max_grasps', 'range'], 'main'),
+    ('object_inside_an_obstacle', _with_scene(obstacles=[(BOX, (0.2, 0.2, 0.2), (0.0, 0.0, 0.0))]),
+     ['object_pose', 'obstacles[0]', 'penetrates'], 'main'),
+    ('object_sunk_into_the_table', _with_scene(planes=[(0, 0, 1, 0.0)]), ['object_pose', 'support_planes[0]', 'sinks'],
+     'main'),
+    ('object_too_small', _box((0.003, 0.003, 0.003)), ['too small'], 'main'),
 ]
 
 
-@pytest.mark.parametrize('edit, words, params', [c[1:] for c in BAD_INPUT], ids=[c[0] for c in BAD_INPUT])
-def test_bad_input_is_refused_and_the_node_keeps_serving(ros, edit, words, params):
-    before = {k: ros.node.get_parameter(k).value for k in params}
+@pytest.mark.parametrize('edit, words, node', [c[1:] for c in BAD_INPUT], ids=[c[0] for c in BAD_INPUT])
+def test_bad_input_is_refused_and_the_node_keeps_serving(ros, edit, words, node):
     req = PlanGrasp.Request()
     req.object_pose = identity_pose()
     req.particles, req.iterations, req.seed = 20, 4, 1
     edit(req, ros.mesh_dir)
-    if params:
-        ros.set_parameters(**params)
-    try:
-        t0 = time.monotonic()
-        res = ros.call(req)
-        elapsed = time.monotonic() - t0
-    finally:
-        if params:
-            ros.set_parameters(**before)
+    t0 = time.monotonic()
+    res = ros.call(req, node=node)
+    elapsed = time.monotonic() - t0
     assert not res.success
     for word in words:
         assert word in res.message, f'{word!r} not in {res.message!r}'
     assert 'internal error' not in res.message
+    assert str(ros.mesh_dir) not in res.message  # never the node's own directory
     assert elapsed < 15.0
     # ... and the node still serves a valid request.
-    ok = ros.call(builtin_request('sphere', iterations=3))
+    ok = ros.call(builtin_request('sphere', iterations=3), node=node)
     assert ok.success, ok.message
 
 
@@ -613,20 +695,199 @@ def test_action_cancel_stops_within_one_iteration(ros, action_client):
     assert res.success, res.message
 
 
-def test_busy_action_goal_is_aborted_with_a_reason(ros, action_client):
-    # One long plan (stopped by plan_timeout, so the test does not depend on planner speed).
-    ros.set_parameters(queue_length=0, plan_timeout=2.0)
+def test_busy_action_goal_is_rejected(ros):
+    """queue_length 0: while a plan runs, a goal is rejected in goal_callback (not accepted
+    and then aborted), and the running plan is not disturbed."""
+    ros.set_parameters(node='strict', plan_timeout=2.0)
+    strict = ros.nodes['strict']
     try:
-        before = ros.progress.total()
-        running = ros.client.call_async(builtin_request('sphere', iterations=10000))
-        # The service plan is running once its first progress message arrived.
-        assert ros.progress.wait_total(before + 1, 30.0) > before
-        goal_handle = ros.wait(action_client.send_goal_async(_goal(iterations=3)), 10.0)
-        wrapped = ros.wait(goal_handle.get_result_async(), 10.0)
-        assert wrapped.status == GoalStatus.STATUS_ABORTED
-        assert not wrapped.result.success and wrapped.result.message.startswith('busy')
+        running = ros.clients['strict'].call_async(builtin_request('sphere', iterations=10000))
+        assert wait_for(lambda: strict.worker.pending >= 1, 30.0)
+        goal_handle = ros.wait(ros.action_clients['strict'].send_goal_async(_goal(iterations=3)), 10.0)
+        assert not goal_handle.accepted
         answer = ros.wait(running, CALL_TIMEOUT)
-        assert not answer.success and 'timed out' in answer.message
+        assert not answer.success and 'timed out' in answer.message and 'planning' in answer.message
         assert answer.configuration.name  # the best grasp so far is still returned
+        assert wait_for(lambda: strict.worker.pending == 0, 10.0)
+        goal_handle = ros.wait(ros.action_clients['strict'].send_goal_async(_goal(iterations=2)), 10.0)
+        assert goal_handle.accepted
+        wrapped = ros.wait(goal_handle.get_result_async(), CALL_TIMEOUT)
+        assert wrapped.status == GoalStatus.STATUS_SUCCEEDED, wrapped.result.message
     finally:
-        ros.set_parameters(queue_length=2, plan_timeout=60.0)
+        ros.set_parameters(node='strict', plan_timeout=60.0)
+
+
+# --- scene and candidates (issues 11 and 12) -----------------------------------------------------
+
+def test_cube_on_a_table_returns_ranked_grasps_with_pre_grasps(ros):
+    req = builtin_request('cube', iterations=8, max_grasps=3, approach_distance=0.06)
+    req.object_pose = table_pose(position=(0.5, 0.0, 0.8), rpy=(0.0, 0.0, 0.4), frame='base')[0]
+    req.support_planes = [_plane(0.0, 0.0, 1.0, -(0.8 - 0.035))]  # z = 0.765: the cube's bottom face
+    res = ros.call(req)
+    assert res.success, res.message
+    assert res.grasp_source == 'planned'
+    assert 1 <= len(res.grasps) <= 3
+    first = res.grasps[0]
+    assert list(res.configuration.position) == list(first.grasp_posture.position)
+    assert res.wrist_pose == first.grasp_pose and res.fitness == first.fitness
+    assert res.contact_fingers == first.contact_fingers
+    qualities = [g.grasp_quality for g in res.grasps]
+    assert qualities == sorted(qualities, reverse=True)
+    for g in res.grasps:
+        assert list(g.grasp_posture.name) == list(JOINT_NAMES) == list(g.pre_grasp_posture.name)
+        assert g.grasp_pose.header.frame_id == g.pre_grasp_pose.header.frame_id == 'base'
+        assert g.approach_direction.header.frame_id == 'base'
+        v = g.approach_direction.vector
+        approach = np.array([v.x, v.y, v.z])
+        assert math.isclose(np.linalg.norm(approach), 1.0, abs_tol=1e-6)
+        assert math.isclose(g.approach_distance, 0.06)
+        grasp = np.array([getattr(g.grasp_pose.pose.position, a) for a in 'xyz'])
+        pre = np.array([getattr(g.pre_grasp_pose.pose.position, a) for a in 'xyz'])
+        assert np.allclose(grasp - pre, 0.06 * approach, atol=1e-6)
+        assert g.sim_result == -1  # not simulated
+    # Progress carries the archive size field.
+    assert ros.progress.wait_count(res.request_id, res.iterations_run, 10.0) == res.iterations_run
+
+
+def test_markers_show_the_scene(ros):
+    late_msgs = []
+    got = threading.Event()
+    req = builtin_request('cube', iterations=3)
+    req.support_planes = [_plane(*TABLE)]
+    solid, pose = _obstacle(BOX, (0.05, 0.05, 0.05), position=(0.0, 0.2, 0.0))
+    req.obstacles, req.obstacle_poses = [solid], [pose]
+    res = ros.call(req)
+    assert res.success, res.message
+    late = SpinningNode(ros.context, 'grasp_apso_test_rviz_scene')
+    late.node.create_subscription(
+        MarkerArray, '/grasp_apso/grasp_markers', lambda m: (late_msgs.append(m), got.set()),
+        QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    with late:
+        assert got.wait(DISCOVERY_TIMEOUT), 'no latched MarkerArray'
+    namespaces = [m.ns for m in late_msgs[-1].markers]
+    assert namespaces.count('grasp_apso/scene') == 1 and namespaces.count('grasp_apso/obstacles') == 1
+    assert namespaces.count('grasp_apso/approach') == len(res.grasps)
+    assert 'grasp_apso/pre_grasp_links' in namespaces
+
+
+# --- limits and security (issue 14) --------------------------------------------------------------
+
+def test_security_parameters_are_read_only(ros):
+    """Nobody can widen the sandbox or the limits at run time; the next request still
+    cannot read outside the directory the node was started with."""
+    assert READ_ONLY >= {'allowed_mesh_dir', 'max_mesh_triangles', 'max_mesh_bytes', 'hand_description',
+                         'queue_length', 'workers'}
+    for name in READ_ONLY:
+        assert ros.node.describe_parameter(name).read_only, name
+    (result,) = _remote_set(ros, allowed_mesh_dir='/')
+    assert not result.successful and 'read-only' in result.reason.lower()
+    assert ros.node.get_parameter('allowed_mesh_dir').value == str(ros.mesh_dir)
+    for name, value in (('max_mesh_triangles', 10_000_000), ('max_mesh_bytes', 2_000_000_000),
+                        ('queue_length', 1000), ('workers', 16)):
+        (result,) = _remote_set(ros, **{name: value})
+        assert not result.successful and 'read-only' in result.reason.lower(), (name, result.reason)
+    for uri in ('/etc/hostname.stl', '../outside/secret.stl', f'file://{ros.mesh_dir.parent}/outside/secret.stl'):
+        res = ros.call(builtin_request(object_name='', mesh_uri=uri))
+        assert not res.success and 'outside the allowed mesh directory' in res.message, res.message
+        assert str(ros.mesh_dir) not in res.message
+
+
+def test_a_bad_hand_description_stops_the_node_without_echoing_the_file(ros, tmp_path):
+    from grasp_apso.errors import HandDescriptionError
+
+    for name, text in (('broken.yaml', 'SECRET_TOKEN_1234: [unclosed, list\n'),
+                       ('not_a_hand.yaml', 'password: SECRET_TOKEN_1234\nfingers: SECRET_TOKEN_1234\n'),
+                       ('bad_values.yaml', 'fingers: [{name: SECRET_TOKEN_1234}]\n')):
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(HandDescriptionError) as info:
+            GraspPlannerNode(f'grasp_apso_hand_{name[:3]}', context=ros.context,
+                             parameter_overrides=[Parameter('hand_description', value=str(path))])
+        assert 'hand_description' in str(info.value)
+        assert 'SECRET_TOKEN' not in str(info.value), str(info.value)
+    (result,) = _remote_set(ros, hand_description=str(tmp_path / 'broken.yaml'))
+    assert not result.successful and 'read-only' in result.reason.lower()
+
+
+def _badly_wound_sphere():
+    """A sphere of 5,120 triangles, half of them wound the wrong way: about 1 s to repair."""
+    mesh = objects.trimesh.creation.icosphere(subdivisions=4, radius=0.03)
+    faces = np.array(mesh.faces)
+    flip = np.random.default_rng(0).random(len(faces)) < 0.5
+    faces[flip] = faces[flip][:, ::-1]
+    return mesh.vertices, faces
+
+
+def test_timeout_covers_loading_names_the_stage_and_the_object_is_cached(ros):
+    vertices, faces = _badly_wound_sphere()
+    req = sphere_request(iterations=2)
+    req.mesh = arrays_to_mesh(vertices, faces)
+    ros.set_parameters(plan_timeout=0.05)
+    try:
+        t0 = time.monotonic()
+        res = ros.call(req)
+        elapsed = time.monotonic() - t0
+    finally:
+        ros.set_parameters(plan_timeout=60.0)
+    assert not res.success and 'timed out' in res.message and 'plan_timeout' in res.message
+    assert 'during validation' in res.message, res.message
+    assert elapsed < 0.8, elapsed
+    # The object is finished in the background and kept: the repeat skips the validation.
+    assert wait_for(lambda: ros.node.worker.pending == 0, 30.0)
+    hits = ros.node.worker.objects.stats().hits
+    res = ros.call(req)
+    assert res.success, res.message
+    assert ros.node.worker.objects.stats().hits == hits + 1
+
+
+def test_mesh_files_are_cached_like_inline_meshes(ros):
+    req = builtin_request(object_name='', mesh_uri='cube.stl', iterations=2)
+    assert ros.call(req).success
+    stats = ros.node.worker.objects.stats()
+    assert ros.call(req).success
+    after = ros.node.worker.objects.stats()
+    assert after.hits == stats.hits + 1 and after.entries == stats.entries
+    assert 0 < after.nbytes <= ros.node.worker.objects.max_bytes
+
+
+def test_cancelling_a_queued_goal_answers_at_once(ros):
+    ros.set_parameters(plan_timeout=3.0)
+    try:
+        running = ros.client.call_async(builtin_request('sphere', iterations=10000))
+        assert wait_for(lambda: ros.node.worker.pending >= 1, 30.0)
+        goal_handle = ros.wait(ros.action_client.send_goal_async(_goal(iterations=3)), 10.0)
+        assert goal_handle.accepted
+        t0 = time.monotonic()
+        ros.wait(goal_handle.cancel_goal_async(), 10.0)
+        wrapped = ros.wait(goal_handle.get_result_async(), 10.0)
+        elapsed = time.monotonic() - t0
+        assert wrapped.status == GoalStatus.STATUS_CANCELED, wrapped.result.message
+        assert 'cancelled while queued' in wrapped.result.message
+        assert elapsed < 1.0, elapsed
+        assert not running.done()  # the running plan was not waited for
+        answer = ros.wait(running, CALL_TIMEOUT)
+        assert 'timed out' in answer.message
+    finally:
+        ros.set_parameters(plan_timeout=60.0)
+    assert wait_for(lambda: ros.node.worker.pending == 0, 10.0)
+
+
+def test_two_workers_plan_two_requests_at_once(ros):
+    """workers 2, queue_length 0: two plans run together, a third caller is told busy."""
+    pair = ros.nodes['pair']
+    ros.set_parameters(node='pair', plan_timeout=1.5)
+    try:
+        first = ros.clients['pair'].call_async(builtin_request('sphere', iterations=10000))
+        second = ros.clients['pair'].call_async(builtin_request('cube', iterations=10000))
+        assert wait_for(lambda: pair.worker.pending == 2, 30.0)
+        third = ros.call(builtin_request('barrel', iterations=2), node='pair')
+        assert not third.success and third.message.startswith('busy') and 'workers 2' in third.message
+        answers = [ros.wait(f, CALL_TIMEOUT) for f in (first, second)]
+    finally:
+        ros.set_parameters(node='pair', plan_timeout=60.0)
+    # Both ran in parallel: each was stopped by the timeout while planning, with a grasp so far.
+    assert all('timed out' in a.message and 'planning' in a.message for a in answers), [a.message for a in answers]
+    assert all(a.configuration.name for a in answers)
+    assert all(a.planning_time < 1.5 + 1.5 for a in answers)
+    ok = ros.call(builtin_request('cube', iterations=2), node='pair')
+    assert ok.success, ok.message

@@ -16,8 +16,8 @@ rclpy = pytest.importorskip('rclpy')
 from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 
 from node_helpers import (  # noqa: E402
-    DISCOVERY_TIMEOUT, PYTHON, REPO_ROOT, SUBSCRIBER_SCRIPT, LineReader, identity_pose, ros_env,
-    wait_future)
+    DISCOVERY_TIMEOUT, DYING_CLIENT_SCRIPT, PYTHON, REPO_ROOT, SUBSCRIBER_SCRIPT, LineReader, burst_calls,
+    identity_pose, ros_env, wait_future)
 
 from grasp_apso.model.hand import JOINT_NAMES  # noqa: E402
 from grasp_apso.ros.node import PARAMETER_NAMES  # noqa: E402
@@ -30,9 +30,12 @@ TOPIC = '/grasp_apso/progress'
 def test_parameter_file_lists_every_parameter():
     import yaml
 
+    from grasp_apso.tunables import yaml_text
+
     with open(PARAMS_FILE, encoding='utf-8') as handle:
-        data = yaml.safe_load(handle)
-    params = data['grasp_apso']['ros__parameters']
+        text = handle.read()
+    assert text == yaml_text()
+    params = yaml.safe_load(text)['grasp_apso']['ros__parameters']
     assert set(params) == set(PARAMETER_NAMES)
 
 
@@ -138,3 +141,59 @@ def test_sigterm_during_a_plan_exits_cleanly(client_context):
         status = _stop(node_proc, signal.SIGTERM)
     assert status == 0, f'node exit status {status}\n{node_out.text()}'
     assert 'Traceback' not in node_out.text(), node_out.text()
+
+
+def _request(name='cube', **fields):
+    req = PlanGrasp.Request()
+    req.object_name = name
+    req.object_pose = identity_pose('world')
+    for key, value in fields.items():
+        setattr(req, key, value)
+    return req
+
+
+def test_a_burst_of_30_requests_is_answered_completely(client_context):
+    """10 clients x 3 requests at once (issue 14.1): every request gets an answer, a plan
+    or "busy"; none is lost (the servers keep a history of 1000 requests)."""
+    node_proc = _start_node()
+    node_out = LineReader(node_proc.stdout)
+    try:
+        batches = [[_request(('cube', 'sphere', 'barrel')[(c + r) % 3], particles=30, iterations=20, seed=c)
+                    for r in range(3)] for c in range(10)]
+        answers = burst_calls(client_context.context, SERVICE, batches, 10, timeout=90.0)
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+    lost = [i for i, (res, _) in enumerate(answers) if res is None]
+    assert not lost, f'{len(lost)} of 30 requests never answered\n{node_out.text()[-3000:]}'
+    planned = [res for res, _ in answers if not res.message.startswith('busy')]
+    busy = [res for res, _ in answers if res.message.startswith('busy')]
+    assert len(planned) + len(busy) == 30
+    assert len(planned) >= 5  # at least the running one and the queue_length 4 behind it
+    assert all(res.success for res in planned), [res.message for res in planned if not res.success]
+    assert all(not res.success and 'queue_length' in res.message for res in busy)
+    assert status == 0, node_out.text()
+
+
+def test_a_client_that_leaves_has_its_requests_cancelled(client_context):
+    """A client stopped mid-request: its running and queued plans are cancelled once the
+    node sees that no client of the service is left, and the next caller is served at once."""
+    node_proc = _start_node()
+    node_out = LineReader(node_proc.stdout)
+    dying = subprocess.Popen([PYTHON, '-c', DYING_CLIENT_SCRIPT, SERVICE], cwd=REPO_ROOT, env=ros_env(),
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    dying_out = LineReader(dying.stdout)
+    try:
+        assert dying_out.wait(lambda lines: 'sent' in lines, 60.0), dying_out.text()
+        assert node_out.wait(lambda lines: any('10000 iterations' in l for l in lines), 30.0), node_out.text()
+        _stop(dying, signal.SIGINT)
+        assert node_out.wait(lambda lines: any('no service client left: cancelled 3' in l for l in lines), 15.0), \
+            node_out.text()
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
+        res = wait_future(client.call_async(_request(particles=20, iterations=3)), 30.0)
+        assert res.success, res.message
+        assert res.planning_time < 5.0
+    finally:
+        _stop(dying, signal.SIGKILL)
+        status = _stop(node_proc, signal.SIGINT)
+    assert status == 0, node_out.text()

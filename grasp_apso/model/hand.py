@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ..errors import HandDescriptionError
+
 from .particle import LAYOUT
 FINGER_NAMES: tuple[str, ...] = ("little", "ring", "middle", "index", "thumb")
 JOINT_KINDS: tuple[str, ...] = ("distal", "proximal", "pivot")
@@ -300,7 +302,7 @@ class HandModel:
 
 def _require(mapping: dict, key: str, where: str) -> Any:
     if not isinstance(mapping, dict) or key not in mapping:
-        raise ValueError(f"hand description: missing '{key}' in {where}")
+        raise HandDescriptionError(f"hand description: missing '{key}' in {where}")
     return mapping[key]
 
 
@@ -308,35 +310,35 @@ def _vector(value: Any, n: int, field: str) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"hand description: {field} must be {n} numbers") from exc
+        raise HandDescriptionError(f"hand description: {field} must be {n} numbers") from exc
     if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"hand description: {field} must be {n} finite numbers, got {value!r}")
+        raise HandDescriptionError(f"hand description: {field} must be {n} finite numbers")
     return arr
 
 
 def _scalar(value: Any, field: str, low: float, high: float) -> float:
     """A finite number in (low, high], else ValueError naming the field."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"hand description: {field} must be a number, got {value!r}")
+        raise HandDescriptionError(f"hand description: {field} must be a number")
     value = float(value)
     if not math.isfinite(value) or not low < value <= high:
-        raise ValueError(f"hand description: {field} = {value!r} must be in ({low}, {high}]")
+        raise HandDescriptionError(f"hand description: {field} must be in ({low}, {high}]")
     return value
 
 
 def hand_from_dict(data: dict) -> HandModel:
     """Build a :class:`HandModel` from a parsed description (see ``data/hand.yaml``)."""
     if not isinstance(data, dict):
-        raise ValueError("hand description: expected a mapping at the top level")
+        raise HandDescriptionError("hand description: expected a mapping at the top level")
     fingers = _require(data, "fingers", "the top level")
     if not isinstance(fingers, list) or [f.get("name") for f in fingers if isinstance(f, dict)] != list(FINGER_NAMES):
-        raise ValueError(f"hand description: fingers must be listed in order {FINGER_NAMES}")
+        raise HandDescriptionError(f"hand description: fingers must be listed in order {FINGER_NAMES}")
     lengths, bases, twists, lower, upper = [], [], [], [], []
     for finger in fingers:
         where = f"finger '{finger['name']}'"
         links = _vector(_require(finger, "links", where), 3, f"{where} links")
         if np.any(links <= 0) or np.any(links > 0.5):
-            raise ValueError(f"hand description: {where} links must be in (0, 0.5] m")
+            raise HandDescriptionError(f"hand description: {where} links must be in (0, 0.5] m")
         lengths.append(links)
         base = np.eye(4)
         rpy = np.radians(_vector(_require(finger, "base_rpy_deg", where), 3, f"{where} base_rpy_deg"))
@@ -348,14 +350,14 @@ def hand_from_dict(data: dict) -> HandModel:
         for kind in JOINT_KINDS:
             lo, hi = _vector(_require(limits, kind, f"{where} limits_deg"), 2, f"{where} limits_deg.{kind}")
             if not lo < hi:
-                raise ValueError(f"hand description: {where} limits_deg.{kind} needs low < high")
+                raise HandDescriptionError(f"hand description: {where} limits_deg.{kind} needs low < high")
             lower.append(math.radians(lo))
             upper.append(math.radians(hi))
     wrist = _require(data, "wrist_limits_deg", "the top level")
     for axis in "xyz":
         lo, hi = _vector(_require(wrist, axis, "wrist_limits_deg"), 2, f"wrist_limits_deg.{axis}")
         if not lo < hi:
-            raise ValueError(f"hand description: wrist_limits_deg.{axis} needs low < high")
+            raise HandDescriptionError(f"hand description: wrist_limits_deg.{axis} needs low < high")
         lower.append(math.radians(lo))
         upper.append(math.radians(hi))
     palm = _require(data, "palm", "the top level")
@@ -363,10 +365,10 @@ def hand_from_dict(data: dict) -> HandModel:
     pad = _scalar(_require(data, "pad_radius", "the top level"), "pad_radius", 0.0, 0.1)
     ratio = _scalar(_require(data, "coupling_ratio", "the top level"), "coupling_ratio", 0.0, 10.0)
     if np.any(radii <= 0):
-        raise ValueError("hand description: link_radii must be positive")
+        raise HandDescriptionError("hand description: link_radii must be positive")
     half = _vector(_require(palm, "half_extents", "palm"), 3, "palm.half_extents")
     if np.any(half <= 0):
-        raise ValueError("hand description: palm.half_extents must be positive")
+        raise HandDescriptionError("hand description: palm.half_extents must be positive")
     return HandModel(
         name=str(data.get("name", "hand")),
         link_lengths=_readonly(lengths),
@@ -397,7 +399,7 @@ def load_hand(path: str | Path | None = None) -> HandModel:
     try:
         stat = path.stat()
     except OSError as exc:
-        raise ValueError(f"hand description: cannot read {path}: {exc.strerror}") from exc
+        raise HandDescriptionError(f"hand description: cannot read {path}: {exc.strerror}") from exc
     return _load_hand_cached(str(path.resolve()), stat.st_mtime_ns, stat.st_size)
 
 
@@ -407,9 +409,12 @@ def _load_hand_cached(path_str: str, _mtime_ns: int, _size: int) -> HandModel:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ValueError(f"hand description: cannot read {path}: {exc.strerror}") from exc
+        raise HandDescriptionError(f"hand description: cannot read {path}: {exc.strerror}") from exc
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"hand description: {path} is not valid YAML: {exc}") from exc
+        # The parser's text quotes the file: name the line only, never the content.
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        raise HandDescriptionError(f"hand description: {path} is not valid YAML{where}") from None
     return hand_from_dict(data)

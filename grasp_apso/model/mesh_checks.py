@@ -254,3 +254,63 @@ def convex_hull(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     if len(hull.faces) == 0 or not hull.volume > 0.0:
         raise flat_error(0.0)
     return hull
+
+
+# --------------------------------------------------------------------------------------
+# What cannot be an object
+# --------------------------------------------------------------------------------------
+
+#: A mesh that is not closed must cover at least this share of its convex hull's surface:
+#: an open surface without volume (two triangles forming a hinge cover 42 %) is not an
+#: object, an open box (83 %), a bowl-like half shell (65 %) or a scan with holes is.
+MIN_OPEN_COVERAGE: float = 0.5
+#: Connected parts whose bounding boxes lie farther apart than this (m) are separate
+#: bodies; a request plans one object, so such a mesh is refused. Parts that touch or
+#: overlap (a mug's handle through its wall) or lie closer stay one object.
+MAX_BODY_GAP: float = 0.05
+#: Above this many connected parts the body check is skipped (a triangle soup).
+_MAX_PARTS: int = 2000
+
+
+def check_encloses_volume(mesh: trimesh.Trimesh, hull: trimesh.Trimesh, watertight: bool) -> None:
+    """Refuse an open surface without volume (ObjectError naming ``mesh``).
+
+    A closed mesh passes; an open one must cover at least :data:`MIN_OPEN_COVERAGE` of
+    the surface area of its convex hull.
+    """
+    if watertight:
+        return
+    hull_area = float(hull.area)
+    coverage = float(mesh.area) / hull_area if hull_area > 0 else 0.0
+    if coverage < MIN_OPEN_COVERAGE:
+        raise ObjectError(
+            f"mesh: an open surface without volume (not closed, and it covers only {coverage:.0%} of "
+            f"its convex hull's surface, at least {MIN_OPEN_COVERAGE:.0%}); send a closed mesh of the object")
+
+
+def check_one_body(mesh: trimesh.Trimesh) -> None:
+    """Refuse a mesh of separate bodies more than :data:`MAX_BODY_GAP` apart (ObjectError
+    naming ``mesh``)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n_faces = len(mesh.faces)
+    adjacency = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(adjacency)), (adjacency[:, 0], adjacency[:, 1])), shape=(n_faces, n_faces))
+    n_parts, labels = connected_components(graph, directed=False)
+    if n_parts <= 1 or n_parts > _MAX_PARTS:
+        return
+    corners = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
+    lo = np.full((n_parts, 3), np.inf)
+    hi = np.full((n_parts, 3), -np.inf)
+    np.minimum.at(lo, labels, corners.min(axis=1))
+    np.maximum.at(hi, labels, corners.max(axis=1))
+    # Gap between two boxes: the largest separation along any axis (0 when they overlap).
+    gap = np.maximum(lo[:, None, :] - hi[None, :, :], lo[None, :, :] - hi[:, None, :]).max(axis=2)
+    n_bodies, body = connected_components(coo_matrix(gap <= MAX_BODY_GAP), directed=False)
+    if n_bodies > 1:
+        between = gap[body[:, None] != body[None, :]]
+        raise ObjectError(
+            f"mesh: {n_bodies} separate bodies, the closest {float(between.min()) * 1000:.0f} mm apart "
+            f"(parts farther apart than {MAX_BODY_GAP * 1000:.0f} mm are separate objects); a request plans "
+            "one object: send each body in a request of its own")

@@ -23,7 +23,7 @@ import io
 import os
 import re
 import urllib.parse
-from typing import Union
+from typing import Callable, Union
 
 import numpy as np
 import trimesh
@@ -32,7 +32,7 @@ from ..errors import ObjectError
 from .mesh_checks import DEFAULT_MAX_TRIANGLES, check_limit
 from .objects import MESH_FORMATS, GraspObject, from_arrays
 
-__all__ = ["DEFAULT_MAX_BYTES", "PathLike", "from_file"]
+__all__ = ["DEFAULT_MAX_BYTES", "PathLike", "from_file", "resolve"]
 
 #: Default limit on the size of a mesh file, bytes.
 DEFAULT_MAX_BYTES: int = 50_000_000
@@ -77,7 +77,7 @@ def _uri_to_path(path: PathLike) -> str:
     return path
 
 
-def _resolve_inside(path: str, allowed_dir: PathLike | None) -> str:
+def _resolve_inside(path: str, allowed_dir: PathLike | None, shown: str | None = None) -> str:
     """Resolve symlinks and ``..``; refuse a result outside ``allowed_dir``.
 
     Parameters
@@ -97,19 +97,26 @@ def _resolve_inside(path: str, allowed_dir: PathLike | None) -> str:
         return real
     allowed = os.path.realpath(os.fspath(allowed_dir))
     if not os.path.isdir(allowed):
-        raise ObjectError(f"mesh_uri: the allowed mesh directory does not exist: {allowed}")
+        raise ObjectError("mesh_uri: the allowed mesh directory does not exist (a configuration problem of the node)")
     if os.path.commonpath([real, allowed]) != allowed:
-        raise ObjectError(f"mesh_uri: outside the allowed mesh directory {allowed}: {path}")
+        # Neither the directory nor whether the path exists is told to the caller.
+        raise ObjectError(f"mesh_uri: outside the allowed mesh directory: {shown or path}")
     return real
 
 
-def _file_format(path: str) -> str:
+def resolve(path: PathLike, allowed_dir: PathLike | None = None) -> str:
+    """The resolved real path of a ``mesh_uri`` (ObjectError when it is malformed or lies
+    outside ``allowed_dir``); for keying caches by path, modification time and size."""
+    return _resolve_inside(_uri_to_path(path), allowed_dir)
+
+
+def _file_format(path: str, shown: str | None = None) -> str:
     """Lower-case extension of ``path`` (no dot) if it is in :data:`MESH_FORMATS`."""
     ext = os.path.splitext(path)[1].lower()
     if ext.lstrip(".") not in MESH_FORMATS:
-        shown = ext if ext else "(none)"
+        ext_shown = ext if ext else "(none)"
         raise ObjectError(
-            f"mesh_uri: unknown format '{shown}' (expected {', '.join(MESH_FORMATS)}): {path}"
+            f"mesh_uri: unknown format '{ext_shown}' (expected {', '.join(MESH_FORMATS)}): {shown or path}"
         )
     return ext.lstrip(".")
 
@@ -159,13 +166,11 @@ def _parse_mesh(data: bytes, file_type: str, shown: str) -> trimesh.Trimesh:
         loaded = trimesh.load(io.BytesIO(data), file_type=file_type, process=False)
     except Exception as exc:  # trimesh parsers raise many exception types
         # An ImportError means trimesh wanted an optional decoder for unrecognised bytes.
-        if isinstance(exc, ImportError):
-            detail = "unrecognised content"
-        else:
-            detail = f"{type(exc).__name__}: {exc}"
-        raise ObjectError(
-            f"mesh_uri: cannot parse as {file_type.upper()} ({detail}): {shown}"
-        ) from None
+        # The parser's own text stays out of the message (it may quote the file); it is
+        # kept in ``detail`` for the caller's log.
+        error = ObjectError(f"mesh_uri: cannot parse as {file_type.upper()}: {shown}")
+        error.detail = "unrecognised content" if isinstance(exc, ImportError) else f"{type(exc).__name__}: {exc}"
+        raise error from None
     if isinstance(loaded, trimesh.Scene):
         parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
         loaded = trimesh.util.concatenate(parts) if parts else None
@@ -180,6 +185,8 @@ def from_file(
     max_triangles: int = DEFAULT_MAX_TRIANGLES,
     max_bytes: int = DEFAULT_MAX_BYTES,
     name: str | None = None,
+    shown: str | None = None,
+    on_stage: Callable[[str], None] | None = None,
 ) -> GraspObject:
     """Load, validate and build a :class:`GraspObject` from an STL/OBJ/PLY/OFF file.
 
@@ -198,6 +205,12 @@ def from_file(
         Largest accepted file size, bytes.
     name : str or None
         Object name; default the file name without extension.
+    shown : str or None
+        The path as the caller gave it, used in messages (default: ``path``), so that a
+        message never names a directory the caller did not write.
+    on_stage : callable(str), optional
+        Told ``"reading"`` before the file is read and ``"validation"`` before the mesh
+        is checked (a caller that bounds the time names the stage that ran out).
 
     Returns
     -------
@@ -221,12 +234,17 @@ def from_file(
     if isinstance(max_bytes, bool) or not isinstance(max_bytes, (int, np.integer)) or max_bytes < 1:
         raise ValueError(f"max_bytes: expected a positive integer, got {max_bytes!r}")
     requested = _uri_to_path(path)
-    real = _resolve_inside(requested, allowed_dir)
-    file_type = _file_format(requested)
-    data = _read_bytes(real, requested, int(max_bytes))
-    loaded = _parse_mesh(data, file_type, requested)
+    said = shown if shown is not None else requested
+    real = _resolve_inside(requested, allowed_dir, said)
+    file_type = _file_format(requested, said)
+    if on_stage is not None:
+        on_stage("reading")
+    data = _read_bytes(real, said, int(max_bytes))
+    loaded = _parse_mesh(data, file_type, said)
     stem = os.path.splitext(os.path.basename(requested))[0] or "mesh"
+    if on_stage is not None:
+        on_stage("validation")
     try:
         return from_arrays(loaded.vertices, loaded.faces, name=name or stem, max_triangles=limit)
     except ObjectError as exc:
-        raise ObjectError(f"{exc} (mesh_uri: {requested})") from None
+        raise ObjectError(f"{exc} (mesh_uri: {said})") from None

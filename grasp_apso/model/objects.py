@@ -51,7 +51,9 @@ from ..errors import ObjectError
 from .mesh_checks import (
     DEFAULT_MAX_TRIANGLES,
     MIN_THICKNESS,
+    check_encloses_volume,
     check_limit,
+    check_one_body,
     check_raw_mesh,
     convex_hull,
     flat_error,
@@ -333,6 +335,8 @@ def from_arrays(
     verts, tris = check_raw_mesh(vertices, triangles, limit)
     mesh, watertight = process_mesh(verts, tris)
     hull = convex_hull(mesh)
+    check_encloses_volume(mesh, hull, watertight)
+    check_one_body(mesh)
     principal_extents, principal_axes = _principal_box(mesh, hull)
     if principal_extents[-1] <= MIN_THICKNESS:
         raise flat_error(float(principal_extents[-1]))

@@ -12,10 +12,13 @@ Functions
   ``mesh_triangles`` -> the same arrays; :func:`arrays_to_packed` the reverse
 - :func:`pose_stamped_to_matrix` -- ``PoseStamped`` -> (frame_id, 4x4), validated
 - :func:`matrix_to_pose_msg` -- 4x4 rigid transform -> ``geometry_msgs/Pose``
-- :func:`fill_result` -- a :class:`~grasp_apso.search.planner.GraspResult` into a ``PlanGrasp``
-  response or action result (they have the same fields)
-- :func:`progress_msg` -- :class:`~grasp_apso.search.planner.IterationStats` -> ``GraspProgress``
-- :func:`grasp_markers` -- a grasp as a ``visualization_msgs/MarkerArray`` for RViz
+- :func:`grasp_msg` -- one :class:`~grasp_apso.search.result.GraspCandidate` -> ``Grasp``
+- :func:`fill_result` -- a :class:`~grasp_apso.search.result.GraspResult` into a ``PlanGrasp``
+  response or action result (they have the same fields): ``grasps`` and the top-level
+  fields (= ``grasps[0]``)
+- :func:`progress_msg` -- :class:`~grasp_apso.search.swarm.IterationStats` -> ``GraspProgress``
+
+RViz markers are in :mod:`grasp_apso.ros.markers`.
 """
 
 from __future__ import annotations
@@ -25,35 +28,28 @@ import operator
 from typing import Any, Iterable
 
 import numpy as np
-from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3, Vector3Stamped
 from sensor_msgs.msg import JointState
 from shape_msgs.msg import Mesh, MeshTriangle
-from std_msgs.msg import ColorRGBA, Header
-from visualization_msgs.msg import Marker, MarkerArray
+from std_msgs.msg import Header
 
-from grasp_apso_interfaces.msg import GraspProgress
+from grasp_apso_interfaces.msg import Grasp, GraspProgress
 
-from ..model.hand import FINGER_NAMES, JOINT_NAMES, HandModel
+from ..model.hand import JOINT_NAMES
 from ..model.poses import matrix_to_pose, pose_to_matrix
 
 __all__ = [
-    "MARKER_NAMESPACE",
     "arrays_to_mesh",
     "arrays_to_packed",
-    "delete_all_markers",
     "fill_result",
-    "grasp_markers",
+    "grasp_msg",
+    "joint_state",
     "matrix_to_pose_msg",
     "mesh_to_arrays",
     "packed_mesh_to_arrays",
     "pose_stamped_to_matrix",
     "progress_msg",
 ]
-
-#: Namespace prefix of the grasp markers (``<prefix>/hand``, ``<prefix>/contacts`` ...).
-MARKER_NAMESPACE = "grasp_apso"
-
 
 # --------------------------------------------------------------------------------------
 # Meshes
@@ -233,44 +229,83 @@ def _vector(values: Iterable[float]) -> Vector3:
 # --------------------------------------------------------------------------------------
 
 
-def fill_result(msg: Any, result: Any, header: Header, planning_time: float | None = None) -> Any:
+def joint_state(positions: Any, header: Header) -> JointState:
+    """A JointState of the 18 :data:`~grasp_apso.model.hand.JOINT_NAMES` (radians)."""
+    values = np.asarray(positions, dtype=np.float64).reshape(-1)
+    if values.shape != (len(JOINT_NAMES),):
+        raise ValueError(f"joint positions: expected {len(JOINT_NAMES)} values, got {values.shape}")
+    return JointState(header=header, name=list(JOINT_NAMES), position=[float(v) for v in values])
+
+
+def grasp_msg(candidate: Any, header: Header) -> Grasp:
+    """One ranked candidate as ``grasp_apso_interfaces/Grasp`` (field by field, SI,
+    everything in the request's planning frame ``header.frame_id``).
+
+    Parameters
+    ----------
+    candidate : grasp_apso.search.result.GraspCandidate
+    header : std_msgs.msg.Header
+        The request's ``object_pose.header``.
+    """
+    msg = Grasp()
+    msg.id = str(candidate.id)
+    msg.grasp_posture = joint_state(candidate.joint_positions, header)
+    msg.pre_grasp_posture = joint_state(candidate.pre_grasp_positions, header)
+    msg.grasp_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(candidate.wrist_pose))
+    msg.pre_grasp_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(candidate.pre_grasp_pose))
+    msg.approach_direction = Vector3Stamped(header=header, vector=_vector(candidate.approach))
+    msg.approach_distance = float(candidate.approach_distance)
+    msg.grasp_quality = float(candidate.grasp_quality)
+    msg.fitness = float(candidate.fitness)
+    msg.epsilon_quality = float(candidate.epsilon)
+    msg.force_closure = bool(candidate.force_closure)
+    msg.contact_points = [_point(c.position) for c in candidate.contacts]
+    msg.contact_normals = [_vector(c.normal) for c in candidate.contacts]
+    msg.contact_fingers = [str(c.finger) for c in candidate.contacts]
+    msg.sim_result = int(candidate.sim_result)
+    msg.sim_max_shift = float(candidate.sim_max_shift)
+    msg.sim_max_turn = float(candidate.sim_max_turn)
+    return msg
+
+
+def fill_result(msg: Any, result: Any, header: Header, planning_time: float | None = None,
+                source: str = "planned") -> Any:
     """Copy a planner result into a ``PlanGrasp`` response or action result.
 
-    Sets ``configuration`` (JointState: the 18 :data:`~grasp_apso.model.hand.JOINT_NAMES`,
-    positions in radians, ``header`` = the request's), ``wrist_pose`` (PoseStamped in the
-    request's frame), ``fitness``, ``epsilon_quality``, ``force_closure``, the contacts
-    (points, outward normals, finger names; planning frame), ``iterations_run`` and
-    ``planning_time``. ``success``, ``message`` and ``request_id`` are the caller's.
+    ``grasps`` gets every ranked candidate (:func:`grasp_msg`), best first; the top-level
+    fields are ``grasps[0]``: ``configuration`` (JointState of the 18 joints, ``header`` =
+    the request's), ``wrist_pose``, ``fitness``, ``epsilon_quality``, ``force_closure`` and
+    the contacts (points, outward normals, fingers; planning frame). Also sets
+    ``iterations_run``, ``planning_time`` and ``grasp_source``. ``success``, ``message``
+    and ``request_id`` are the caller's. A result without candidates fills the top-level
+    fields from the result itself.
 
     Parameters
     ----------
     msg : PlanGrasp.Response or PlanGrasp.Result
-    result : grasp_apso.search.planner.GraspResult
+    result : grasp_apso.search.result.GraspResult
     header : std_msgs.msg.Header
         The request's ``object_pose.header`` (frame and stamp).
     planning_time : float, optional, s
         Time to report; default the planner's preparation plus planning time.
-
-    Returns
-    -------
-    msg, filled in place.
+    source : str
+        ``grasp_source``: "planned" or "database".
     """
     names = tuple(result.joint_names)
     if names != JOINT_NAMES:
         raise ValueError(f"result: unexpected joint names {names}")
-    positions = np.asarray(result.joint_positions, dtype=np.float64)
-    state = JointState()
-    state.header = header
-    state.name = list(JOINT_NAMES)
-    state.position = [float(v) for v in positions]
-    msg.configuration = state
-    msg.wrist_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(result.wrist_pose))
-    msg.fitness = float(result.fitness)
-    msg.epsilon_quality = float(result.epsilon)
-    msg.force_closure = bool(result.force_closure)
-    msg.contact_points = [_point(c.position) for c in result.contacts]
-    msg.contact_normals = [_vector(c.normal) for c in result.contacts]
-    msg.contact_fingers = [str(c.finger) for c in result.contacts]
+    candidates = tuple(getattr(result, "candidates", ()) or ())
+    best = candidates[0] if candidates else result
+    msg.configuration = joint_state(best.joint_positions, header)
+    msg.wrist_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(best.wrist_pose))
+    msg.fitness = float(best.fitness)
+    msg.epsilon_quality = float(best.epsilon)
+    msg.force_closure = bool(best.force_closure)
+    msg.contact_points = [_point(c.position) for c in best.contacts]
+    msg.contact_normals = [_vector(c.normal) for c in best.contacts]
+    msg.contact_fingers = [str(c.finger) for c in best.contacts]
+    msg.grasps = [grasp_msg(c, header) for c in candidates]
+    msg.grasp_source = source
     msg.iterations_run = int(result.iterations_run)
     if planning_time is None:
         planning_time = result.planning_time + result.preparation_time
@@ -279,10 +314,11 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
 
 
 def progress_msg(stats: Any, request_id: str, algorithm: str, header: Header) -> GraspProgress:
-    """A ``GraspProgress`` from one :class:`~grasp_apso.search.planner.IterationStats`.
+    """A ``GraspProgress`` from one :class:`~grasp_apso.search.swarm.IterationStats`.
 
     Non-finite fitness values (no active particle yet) are sent as they are (``-inf``);
-    ``ros2 topic echo`` shows them as ``-.inf``.
+    ``ros2 topic echo`` shows them as ``-.inf``. ``distinct_candidates`` is the size of the
+    search's archive of distinct valid candidates (0 when the planner does not keep one).
     """
     msg = GraspProgress()
     msg.header = header
@@ -295,138 +331,5 @@ def progress_msg(stats: Any, request_id: str, algorithm: str, header: Header) ->
     msg.active_particles = int(stats.active_particles)
     msg.best_contacts = int(stats.best_contacts)
     msg.elapsed = float(stats.elapsed)
+    msg.distinct_candidates = int(getattr(stats, "distinct_candidates", 0) or 0)
     return msg
-
-
-# --------------------------------------------------------------------------------------
-# RViz markers
-# --------------------------------------------------------------------------------------
-
-_FINGER_COLORS = {
-    "little": (0.90, 0.60, 0.20),
-    "ring": (0.85, 0.75, 0.25),
-    "middle": (0.40, 0.80, 0.30),
-    "index": (0.25, 0.60, 0.90),
-    "thumb": (0.75, 0.35, 0.85),
-}
-
-
-def _color(rgb: tuple[float, float, float], alpha: float = 1.0) -> ColorRGBA:
-    return ColorRGBA(r=float(rgb[0]), g=float(rgb[1]), b=float(rgb[2]), a=float(alpha))
-
-
-def _marker(header: Header, ns: str, marker_id: int, kind: int) -> Marker:
-    marker = Marker()
-    marker.header = header
-    marker.ns = ns
-    marker.id = marker_id
-    marker.type = kind
-    marker.action = Marker.ADD
-    marker.pose.orientation.w = 1.0
-    marker.lifetime = Duration(sec=0, nanosec=0)  # forever, until the next DELETEALL
-    marker.frame_locked = False
-    return marker
-
-
-def grasp_markers(
-    result: Any,
-    header: Header,
-    hand: HandModel,
-    ns: str = MARKER_NAMESPACE,
-    normal_length: float = 0.03,
-) -> MarkerArray:
-    """RViz markers of a planned grasp, in the request's frame.
-
-    The array starts with a ``DELETEALL`` marker, so the previous grasp disappears; then:
-
-    - ``<ns>/palm``: the palm box (CUBE) at the wrist pose;
-    - ``<ns>/links``: one LINE_LIST per finger (wrist -> finger base -> joints -> tip),
-      line width the link diameter, coloured per finger;
-    - ``<ns>/fingertips``: the fingertip pads (SPHERE_LIST, pad diameter), green for a
-      finger in contact, grey otherwise;
-    - ``<ns>/contacts``: contact points (SPHERE_LIST, 6 mm, red);
-    - ``<ns>/normals``: the outward surface normal at each contact (ARROW, 3 cm).
-
-    Parameters
-    ----------
-    result : grasp_apso.search.planner.GraspResult
-        Its ``joints`` (5, 4, 3) and ``contacts`` are in the planning frame.
-    header : std_msgs.msg.Header
-        The request's ``object_pose.header``.
-    hand : HandModel
-        For the link and pad radii and the palm box.
-    """
-    markers = MarkerArray()
-    clear = Marker()
-    clear.header = header
-    clear.action = Marker.DELETEALL
-    markers.markers.append(clear)
-
-    wrist = np.asarray(result.wrist_pose, dtype=np.float64)
-    joints = np.asarray(result.joints, dtype=np.float64)  # (5, 4, 3) base, pip, dip, tip
-    next_id = 0
-
-    # Palm box.
-    palm = _marker(header, f"{ns}/palm", next_id, Marker.CUBE)
-    next_id += 1
-    palm_tf = wrist.copy()
-    palm_tf[:3, 3] = wrist[:3, :3] @ np.asarray(hand.palm_center, dtype=float) + wrist[:3, 3]
-    palm.pose = matrix_to_pose_msg(palm_tf)
-    half = np.asarray(hand.palm_half_extents, dtype=float)
-    palm.scale = _vector(2.0 * half)
-    palm.color = _color((0.80, 0.70, 0.60), 0.6)
-    markers.markers.append(palm)
-
-    # Finger links.
-    origin = wrist[:3, 3]
-    diameter = 2.0 * float(np.max(hand.link_radii))
-    for f, name in enumerate(FINGER_NAMES):
-        line = _marker(header, f"{ns}/links", next_id, Marker.LINE_LIST)
-        next_id += 1
-        chain = [origin, *joints[f]]
-        for a, b in zip(chain[:-1], chain[1:]):
-            line.points.append(_point(a))
-            line.points.append(_point(b))
-        line.scale.x = diameter
-        line.color = _color(_FINGER_COLORS.get(name, (0.7, 0.7, 0.7)), 0.9)
-        markers.markers.append(line)
-
-    # Fingertip pads.
-    in_contact = {c.finger for c in result.contacts}
-    tips = _marker(header, f"{ns}/fingertips", next_id, Marker.SPHERE_LIST)
-    next_id += 1
-    pad = 2.0 * float(hand.pad_radius)
-    tips.scale = Vector3(x=pad, y=pad, z=pad)
-    tips.color = _color((0.6, 0.6, 0.6), 0.9)
-    for f, name in enumerate(FINGER_NAMES):
-        tips.points.append(_point(joints[f, -1]))
-        tips.colors.append(_color((0.2, 0.85, 0.2) if name in in_contact else (0.6, 0.6, 0.6), 0.9))
-    markers.markers.append(tips)
-
-    # Contacts and their normals.
-    if result.contacts:
-        spheres = _marker(header, f"{ns}/contacts", next_id, Marker.SPHERE_LIST)
-        next_id += 1
-        spheres.scale = Vector3(x=0.006, y=0.006, z=0.006)
-        spheres.color = _color((0.95, 0.1, 0.1), 1.0)
-        spheres.points = [_point(c.position) for c in result.contacts]
-        markers.markers.append(spheres)
-        for contact in result.contacts:
-            arrow = _marker(header, f"{ns}/normals", next_id, Marker.ARROW)
-            next_id += 1
-            start = np.asarray(contact.position, dtype=float)
-            end = start + normal_length * np.asarray(contact.normal, dtype=float)
-            arrow.points = [_point(start), _point(end)]
-            arrow.scale = Vector3(x=0.002, y=0.004, z=0.006)  # shaft, head diameter, head length
-            arrow.color = _color((0.95, 0.2, 0.2), 1.0)
-            markers.markers.append(arrow)
-    return markers
-
-
-def delete_all_markers(header: Header) -> MarkerArray:
-    """A MarkerArray holding only a DELETEALL marker (clears the last grasp)."""
-    clear = Marker()
-    clear.header = header
-    clear.action = Marker.DELETEALL
-    return MarkerArray(markers=[clear])
-

@@ -23,11 +23,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from scipy.spatial.transform import Rotation
 
+from shape_msgs.msg import Plane
+
 from grasp_apso_interfaces.msg import GraspProgress
 from grasp_apso_interfaces.srv import PlanGrasp
 
 from ..model.hand import FINGER_NAMES, JOINT_KINDS
-from ..model.builtin import BUILTIN_OBJECTS
+from ..model.builtin import BUILTIN_OBJECTS, builtin
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -45,6 +47,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--frame", default="world", help="planning frame (default: world)")
     parser.add_argument("--position", type=float, nargs=3, default=(0.5, 0.0, 0.1),
                         metavar=("X", "Y", "Z"), help="object position in the frame, m")
+    parser.add_argument("--table", action=argparse.BooleanOptionalAction, default=True,
+                        help="the object rests on a table: one support plane (normal +z) under its lowest "
+                             "point (default: on; --no-table plans in free space)")
+    parser.add_argument("--grasps", type=int, default=5, help="max_grasps: ranked candidates wanted (default 5)")
     parser.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the service")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds to wait for the answer")
     return parser.parse_args(argv)
@@ -83,6 +89,16 @@ def _print_result(res: PlanGrasp.Response, round_trip: float) -> None:
               f"({normal.x:.2f}, {normal.y:.2f}, {normal.z:.2f})")
     print(f"iterations run : {res.iterations_run}")
     print(f"planning time  : {res.planning_time:.3f} s (round trip {round_trip:.3f} s)")
+    if res.grasps:
+        print("")
+        print(f"candidates     : {len(res.grasps)}, best first (wrist position mm, approach direction unit)")
+        sim = {-1: "", 0: "  dropped", 1: "  held"}
+        for rank, g in enumerate(res.grasps, 1):
+            p, a = g.grasp_pose.pose.position, g.approach_direction.vector
+            print(f"  {rank}. {g.id:<4} quality {g.grasp_quality:.3f}  epsilon {g.epsilon_quality:.4f}  "
+                  f"FC {'yes' if g.force_closure else 'no '}  {len(g.contact_fingers)} contacts  wrist "
+                  f"({p.x * 1000:.0f}, {p.y * 1000:.0f}, {p.z * 1000:.0f})  approach "
+                  f"({a.x:.2f}, {a.y:.2f}, {a.z:.2f}){sim.get(g.sim_result, '')}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,9 +145,16 @@ def main(argv: list[str] | None = None) -> int:
         request.particles = max(0, args.particles)
         request.iterations = max(0, args.iterations)
         request.seed = args.seed
-        print(f"[demo] planning a grasp of the built-in '{args.object}' at "
-              f"({args.position[0]}, {args.position[1]}, {args.position[2]}) m in frame "
-              f"'{args.frame}' ...", flush=True)
+        request.max_grasps = max(0, args.grasps)
+        if args.table:  # a support plane under the object's lowest point (identity orientation)
+            lowest = float(args.position[2]) + float(builtin(args.object).mesh.vertices[:, 2].min())
+            plane = Plane()
+            plane.coef = [0.0, 0.0, 1.0, -lowest]
+            request.support_planes = [plane]
+        print(f"[demo] planning up to {request.max_grasps or 'the default number of'} grasps of the built-in "
+              f"'{args.object}' at ({args.position[0]}, {args.position[1]}, {args.position[2]}) m in frame "
+              f"'{args.frame}'" + (f", resting on a table at z = {-request.support_planes[0].coef[3]:.3f} m"
+                                   if args.table else "") + " ...", flush=True)
         t0 = time.perf_counter()
         done = threading.Event()
         future = client.call_async(request)
