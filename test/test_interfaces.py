@@ -33,6 +33,14 @@ REQUEST_FIELDS = {
     'seed': 'int64',
     'fix_wrist_position': 'boolean',
     'wrist_position': 'geometry_msgs/Point',
+    # Part 2: the scene, the approach, candidates and the simulation check.
+    'support_planes': 'sequence<shape_msgs/Plane>',
+    'obstacles': 'sequence<shape_msgs/SolidPrimitive>',
+    'obstacle_poses': 'sequence<geometry_msgs/Pose>',
+    'clearance': 'double',
+    'approach_distance': 'double',
+    'max_grasps': 'uint32',
+    'simulate': 'boolean',
 }
 RESPONSE_FIELDS = {
     'success': 'boolean',
@@ -48,6 +56,8 @@ RESPONSE_FIELDS = {
     'contact_fingers': 'sequence<string>',
     'iterations_run': 'uint32',
     'planning_time': 'double',
+    'grasps': 'sequence<grasp_apso_interfaces/Grasp>',
+    'grasp_source': 'string',
 }
 PROGRESS_FIELDS = {
     'header': 'std_msgs/Header',
@@ -60,6 +70,7 @@ PROGRESS_FIELDS = {
     'active_particles': 'uint32',
     'best_contacts': 'uint32',
     'elapsed': 'double',
+    'distinct_candidates': 'uint32',
 }
 FINGERS = ('little', 'ring', 'middle', 'index', 'thumb')
 JOINT_NAMES = [f'{f}_{j}' for f in FINGERS for j in ('distal', 'proximal', 'pivot')] + [
@@ -364,3 +375,30 @@ def test_action_goal_feedback_result_through_middleware(ros_context):
         spinner.join(timeout=5.0)
         server_node.destroy_node()
         client_node.destroy_node()
+
+
+def test_grasp_message_carries_the_design_fields():
+    """msg/Grasp.msg: the contract of DESIGN.md "Several ranked candidates", field by field."""
+    from grasp_apso_interfaces.msg import Grasp
+
+    assert Grasp.get_fields_and_field_types() == {
+        'id': 'string',
+        'grasp_posture': 'sensor_msgs/JointState',
+        'pre_grasp_posture': 'sensor_msgs/JointState',
+        'grasp_pose': 'geometry_msgs/PoseStamped',
+        'pre_grasp_pose': 'geometry_msgs/PoseStamped',
+        'approach_direction': 'geometry_msgs/Vector3Stamped',
+        'approach_distance': 'double',
+        'grasp_quality': 'double',
+        'fitness': 'double',
+        'epsilon_quality': 'double',
+        'force_closure': 'boolean',
+        'contact_points': 'sequence<geometry_msgs/Point>',
+        'contact_normals': 'sequence<geometry_msgs/Vector3>',
+        'contact_fingers': 'sequence<string>',
+        'sim_result': 'int8',
+        'sim_max_shift': 'double',
+        'sim_max_turn': 'double',
+    }
+    assert Grasp().sim_result == Grasp.SIM_NOT_RUN == -1
+    assert (Grasp.SIM_DROPPED, Grasp.SIM_HELD) == (0, 1)
