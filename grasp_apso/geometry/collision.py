@@ -103,22 +103,40 @@ def mesh_bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
     return bvh
 
 
-def capsule_transform(p0: np.ndarray, p1: np.ndarray) -> tuple[fcl.Transform, float]:
-    """Pose and length of the fcl capsule along the segment [p0, p1].
+def capsule_frames(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses of fcl capsules along segments [p0, p1], batched.
 
-    fcl capsules lie along their local z, centred on the origin. p0, p1 : (3,) float, m.
-    Returns the ``fcl.Transform`` (rotation taking +z to the segment, centre at its
-    midpoint) and the length (m, at least 1e-9).
+    fcl capsules lie along their local z, centred on the origin.
+
+    Parameters
+    ----------
+    p0, p1 : (..., 3) float, m
+
+    Returns
+    -------
+    rot : (..., 3, 3) float
+        Rotation taking +z to the segment direction.
+    centre : (..., 3) float, m
+        Segment midpoints.
+    length : (...,) float, m
+        Segment lengths (at least 1e-9).
     """
+    p0, p1 = np.broadcast_arrays(np.asarray(p0, dtype=float), np.asarray(p1, dtype=float))
     axis = p1 - p0
-    length = float(np.linalg.norm(axis))
-    z = axis / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    length = np.linalg.norm(axis, axis=-1)
+    z = np.where(length[..., None] > 1e-12, axis / np.maximum(length, 1e-300)[..., None], [0.0, 0.0, 1.0])
+    helper = np.where(np.abs(z[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
+    x /= np.linalg.norm(x, axis=-1, keepdims=True)
     y = np.cross(z, x)
-    rot = np.column_stack([x, y, z])
-    return fcl.Transform(rot, 0.5 * (p0 + p1)), max(length, 1e-9)
+    return np.stack([x, y, z], axis=-1), 0.5 * (p0 + p1), np.maximum(length, 1e-9)
+
+
+def capsule_transform(p0: np.ndarray, p1: np.ndarray) -> tuple[fcl.Transform, float]:
+    """``fcl.Transform`` and length (m) of the capsule along [p0, p1] (3,), see
+    :func:`capsule_frames`."""
+    rot, centre, length = capsule_frames(p0, p1)
+    return fcl.Transform(rot, centre), float(length)
 
 
 def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> fcl.CollisionObject:
