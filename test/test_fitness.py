@@ -11,7 +11,7 @@ from grasp_apso.geometry.decoder import DecodedGrasps
 from grasp_apso.model.hand import load_hand
 from grasp_apso.model.builtin import builtin
 from grasp_apso.search.planner import prepare
-from grasp_apso.quality.measures.measures import normal_wrench_residual
+from grasp_apso.quality.measures import normal_wrench_residual
 
 RADIUS = 0.025
 

@@ -1,4 +1,4 @@
-"""Tests for grasp_apso.quality.measures.measures: polygon shape (eq. 8-10), antipodality, force balance
+"""Tests for grasp_apso.quality.measures: polygon shape (eq. 8-10), antipodality, force balance
 (eq. 11-12) and the Ferrari-Canny epsilon quality. Known answers are computed by hand in the
 tests; batch functions are checked against an independent per-particle reference."""
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from grasp_apso.quality.measures.measures import (
+from grasp_apso.quality.measures import (
     antipodal_score,
     epsilon_quality,
     epsilon_quality_batch,

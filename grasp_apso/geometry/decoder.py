@@ -30,11 +30,11 @@ the palm face. A caller may instead fix the wrist position.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from . import kernels
+from . import kernels, scene_kernels
 from .collision import finger_collisions
 from ..model.hand import N_FINGERS, HandModel, wrist_rotation
 from ..model.particle import LAYOUT
@@ -75,6 +75,13 @@ def _link_coefficients(points: np.ndarray) -> np.ndarray:
 
 _SWEEP_COEFF = _link_coefficients(_SWEEP_POINTS)
 _FINAL_COEFF = _link_coefficients(_FINAL_POINTS)
+# The approach's object check traces every other final point and the pad.
+_APPROACH_INDEX = np.r_[np.arange(0, len(_FINAL_POINTS) - 1, 2), len(_FINAL_POINTS) - 1]
+_APPROACH_COEFF = np.ascontiguousarray(_FINAL_COEFF[:, _APPROACH_INDEX])
+
+
+def _APPROACH_RADII_OF(model) -> np.ndarray:
+    return np.ascontiguousarray(model.point_radii[_APPROACH_INDEX])
 
 
 @dataclass(frozen=True)
@@ -161,10 +168,47 @@ class GraspModel:
     capsule_radii: np.ndarray = field(repr=False)
     palm_center: np.ndarray = field(repr=False)
     palm_half_extents: np.ndarray = field(repr=False)
+    #: The scene in the object frame (:meth:`grasp_apso.model.scene.Scene.packed`, read
+    #: only), or None: no scene check at all (the decoding of a free-space plan).
+    scene: dict | None = field(default=None, repr=False)
+    #: Least hand-scene distance (m) and the pre-grasp retreat (m) of the scene check.
+    scene_clearance: float = 0.0
+    approach_distance: float = 0.0
 
     @property
     def dims(self) -> int:
         return N_DIMS
+
+
+#: Largest step (m) of the sampled approach path.
+APPROACH_STEP = 0.005
+#: Scene gaps are computed up to this far beyond the clearance (m): guidance range.
+SCENE_HORIZON = 0.02
+#: The link spheres cover the capsules to within about 0.3 mm, edges of boxes and
+#: cylinders a little less (measured against dense sampling): finger gaps are reduced
+#: by this (m) so that the check stays conservative.
+FINGER_COVER_MARGIN = 0.001
+#: Along the approach the open hand may touch the object only in the last this many m
+#: before the grasp (``hand_fcl.CONTACT_ZONE``); elsewhere a finger whose link spheres
+#: come within APPROACH_TOUCH of it makes the particle illegal (scene_margin < 0).
+APPROACH_CONTACT_ZONE = 0.010
+APPROACH_TOUCH = 0.0005
+
+
+def with_scene(model: GraspModel, scene, clearance: float, approach_distance: float) -> GraspModel:
+    """The model with a scene check: a particle whose palm, closed fingers (at the grasp)
+    or open pre-shape (along the approach from the pre-grasp) comes within ``clearance``
+    (m) of ``scene`` (a :class:`~grasp_apso.model.scene.Scene` in the object frame) is
+    illegal. An empty scene or None returns ``model`` unchanged."""
+    if scene is None or scene.is_empty:
+        return model
+    packed = {}
+    for name, value in scene.packed().items():
+        arr = np.ascontiguousarray(value, dtype=np.float64)
+        arr.flags.writeable = False
+        packed[name] = arr
+    return replace(model, scene=packed, scene_clearance=float(clearance),
+                   approach_distance=float(approach_distance))
 
 
 def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = None) -> GraspModel:
@@ -252,6 +296,12 @@ class DecodedGrasps:
         Deepest point of each finger, from the middle of its proximal link to the pad,
         inside the palm box (0 when none); deeper than the settings' ``palm_overlap``
         counts as a finger collision.
+    scene_margin : (P, 5) float or None, m
+        Least distance of each finger to the scene (closed at the grasp, open along the
+        approach) minus the clearance: negative = too close (illegal). None without a
+        scene; read at most :data:`SCENE_HORIZON`.
+    palm_scene_margin : (P,) float or None, m
+        The same for the palm box (grasp and approach).
     """
 
     closed: np.ndarray
@@ -267,6 +317,8 @@ class DecodedGrasps:
     palm_penetration: np.ndarray
     link_contact: np.ndarray
     palm_depth: np.ndarray
+    scene_margin: np.ndarray | None = None
+    palm_scene_margin: np.ndarray | None = None
 
     @property
     def n_contacts(self) -> np.ndarray:
@@ -275,15 +327,31 @@ class DecodedGrasps:
 
     def finger_illegal(self, max_penetration: float) -> np.ndarray:
         """(P, 5) bool: fingers the verification test rejects."""
-        return self.blocked | self.finger_collision | self.link_contact | (self.penetration > max_penetration)
+        bad = self.blocked | self.finger_collision | self.link_contact | (self.penetration > max_penetration)
+        if self.scene_margin is not None:
+            bad |= self.scene_margin < 0.0
+        return bad
 
     def legal(self, max_penetration: float) -> np.ndarray:
         """(P,) bool: no illegal finger and no palm penetration."""
-        return ~self.finger_illegal(max_penetration).any(axis=1) & (self.palm_penetration <= max_penetration)
+        ok = ~self.finger_illegal(max_penetration).any(axis=1) & (self.palm_penetration <= max_penetration)
+        if self.palm_scene_margin is not None:
+            ok &= self.palm_scene_margin >= 0.0
+        return ok
+
+    @property
+    def scene_violation(self) -> np.ndarray:
+        """(P,) float, m: how far the hand is inside the clearance of the scene (0 when
+        clear or without a scene)."""
+        if self.scene_margin is None:
+            return np.zeros(len(self.closed))
+        least = np.minimum(self.scene_margin.min(axis=1), self.palm_scene_margin)
+        return np.maximum(0.0, -least)
 
     def take(self, index: np.ndarray) -> "DecodedGrasps":
         """The particles ``index`` (an index or boolean mask over P) of the batch."""
-        return DecodedGrasps(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+        return DecodedGrasps(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
+                                for f in fields(self)})
 
 
 def wrist_transforms(
@@ -403,6 +471,10 @@ def decode(
         "contact_points": surface_r, "contact_normals": normals_r, "palm_depth": palm_depth_r,
         "joints": pts[:, _JOINT_INDEX, :],
     }
+    if model.scene is not None:
+        per_row["scene_margin"] = np.minimum(
+            _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts),
+            _approach_object_gaps(model, rows, rot, trans, planes, distal0, proximal0) - APPROACH_TOUCH)
     if reuse is None:
         out = {name: value.reshape((n, N_FINGERS) + value.shape[1:]) for name, value in per_row.items()}
         flexions = flex_r.reshape(n, N_FINGERS, 2)
@@ -429,7 +501,60 @@ def decode(
         palm_pen = np.zeros(n)
     else:
         palm_pen = _palm_penetration(model, wrist)
+    if model.scene is not None:
+        out["palm_scene_margin"] = _palm_scene_gaps(model, rot, trans) if reuse is None else reuse.palm_scene_margin
     return DecodedGrasps(closed=closed, wrist=wrist, finger_collision=collide, palm_penetration=palm_pen, **out)
+
+
+def _scene_arrays(model: GraspModel) -> tuple:
+    sc = model.scene
+    return (sc["planes"], sc["box_inv"], sc["box_half"], sc["sphere_center"], sc["sphere_radius"],
+            sc["cyl_inv"], sc["cyl_radius"], sc["cyl_half_height"])
+
+
+def _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts) -> np.ndarray:
+    """Scene margin (R,) m of the finger rows: closed pose ``pts`` (R, K, 3) at the grasp,
+    open pre-shape along the approach (:func:`grasp_apso.geometry.scene_kernels.finger_scene_gaps`)."""
+    n_steps = max(2, int(np.ceil(model.approach_distance / APPROACH_STEP)) + 1)
+    gaps = np.empty(len(rows))
+    scene_kernels.finger_scene_gaps(
+        rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
+        np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
+        _FINAL_COEFF, model.point_radii, pts, model.approach_distance, n_steps,
+        model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps,
+    )
+    return gaps - model.scene_clearance - FINGER_COVER_MARGIN
+
+
+def palm_scene_margins(model: GraspModel, wrist: np.ndarray) -> np.ndarray:
+    """Scene margin (P,) m (least distance minus the clearance, negative: too close) of
+    the palm box at wrists (P, 4, 4) (object frame), swept over the approach; ``inf``
+    without a scene. Cheap (no fingers): GRG screens wrists with it before decoding."""
+    if model.scene is None:
+        return np.full(len(wrist), np.inf)
+    return _palm_scene_gaps(model, np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3]))
+
+
+def _approach_object_gaps(model, rows, rot, trans, planes, distal0, proximal0) -> np.ndarray:
+    """Clearance (R,) m of the open pre-shape of the finger rows from the object along the
+    approach, before the last :data:`APPROACH_CONTACT_ZONE` (0 = touching)."""
+    gaps = np.empty(len(rows))
+    sdf = model.sdf
+    scene_kernels.approach_object_gaps(
+        rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
+        np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
+        _APPROACH_COEFF, _APPROACH_RADII_OF(model), sdf._values64, sdf._origin64, float(sdf.spacing),
+        model.approach_distance, APPROACH_CONTACT_ZONE, 0.002, 0.01, gaps,
+    )
+    return gaps
+
+
+def _palm_scene_gaps(model, rot, trans) -> np.ndarray:
+    """Scene margin (P,) m of the palm box swept over the approach."""
+    gaps = np.empty(len(rot))
+    scene_kernels.palm_scene_gaps(rot, trans, model.palm_center, model.palm_half_extents, model.approach_distance,
+                                  model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps)
+    return gaps - model.scene_clearance
 
 
 def _rows_to_decode(x: np.ndarray, reuse: DecodedGrasps | None, changed: np.ndarray | None) -> np.ndarray:

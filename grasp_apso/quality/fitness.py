@@ -91,7 +91,7 @@ def evaluate(
     n = len(nc)
     shape, balance, residual = np.empty(n), np.empty(n), np.empty(n)
     # Every term in one compiled loop over the particles (the functions of
-    # grasp_apso.quality.measures.measures compute the same, with their input checks).
+    # grasp_apso.quality.measures compute the same, with their input checks).
     quality_kernels.fitness_terms(
         np.ascontiguousarray(decoded.contact_points), np.ascontiguousarray(decoded.contact_normals),
         np.ascontiguousarray(mask), active, np.asarray(model.obj.center_of_mass, dtype=np.float64),

@@ -6,9 +6,9 @@ from the origin to the hull of the normal wrenches. Each is a handful of operati
 most five contacts, which numpy could only batch through some forty array operations
 per call; here one loop over the particles computes them all
 (:func:`fitness_terms`, used by :func:`grasp_apso.quality.fitness.evaluate`), and the public,
-validating functions of :mod:`grasp_apso.quality.measures.measures` run the same per-particle functions
+validating functions of :mod:`grasp_apso.quality.measures` run the same per-particle functions
 through their ``*_batch`` loops, so each formula exists once. The formulas, and what they
-return for degenerate input, are documented in :mod:`grasp_apso.quality.measures.measures`.
+return for degenerate input, are documented in :mod:`grasp_apso.quality.measures`.
 
 Conventions as in :mod:`grasp_apso.geometry.kernels`: float64 C-contiguous arrays, inputs already
 validated (finite in-contact values, unit normals), the GIL released, cached on disk.

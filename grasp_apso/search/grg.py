@@ -23,16 +23,20 @@ particles can be found.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import PlanningError
-from ..geometry.decoder import N_DIMS, STANDOFF_INDEX, GraspModel, decode
+from ..geometry.decoder import N_DIMS, STANDOFF_INDEX, GraspModel, decode, palm_scene_margins, wrist_transforms
 from ..model.hand import N_FINGERS, rotation_to_wrist_angles
 from ..model.particle import LAYOUT
 
 SHAPE_CLASSES: tuple[str, ...] = ("sphere-like", "box-like", "cylinder-like", "elongated")
+#: With a support plane, this share of GRG's wrists approach straight down its normal
+#: (then the usual ~10 degrees of noise); the others keep the class's approach, turned to
+#: the free side (top or side grasps).
+TOP_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -49,12 +53,24 @@ class ShapeClass:
         Sizes along the axes.
     box_fill : float
         Volume over oriented-bounding-box volume (1 box, 0.785 cylinder, 0.524 sphere).
+    support : (K, 3) float
+        Unit normals (object frame, pointing into free space) of the support planes the
+        object rests on; empty in free space. Wrists are then sampled from the free side:
+        the approach (palm normal, pointing into the object) never points up out of a
+        support (the hand never comes from below the table), so an object on a table is
+        grasped from above or from the side.
     """
 
     name: str
     axes: np.ndarray
     extents: np.ndarray
     box_fill: float
+    support: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
+
+    def with_support(self, normals: np.ndarray) -> "ShapeClass":
+        """This class with support planes of unit normals (K, 3) (object frame)."""
+        n = np.asarray(normals, dtype=float).reshape(-1, 3)
+        return replace(self, support=n / np.linalg.norm(n, axis=1, keepdims=True))
 
     @property
     def standoff_per_width(self) -> float:
@@ -91,9 +107,37 @@ class ShapeClass:
             approach_g, finger_g = approach, finger
         approach = np.where(guided[:, None], approach_g, approach)
         finger = np.where(guided[:, None], finger_g, finger)
+        if len(self.support):
+            # Prefer grasps from above (the hand's reach from the side ends at the
+            # support): a share of the approaches straight down the first support normal.
+            top = rng.random(n) < TOP_FRACTION
+            approach = np.where(top[:, None], -self.support[0], self.free_side(approach))
         rot = _frames(approach, finger)
         # A little noise (about 10 degrees) around the guided orientation.
-        return _small_rotations(rng, n, math.radians(10.0)) @ rot
+        rot = _small_rotations(rng, n, math.radians(10.0)) @ rot
+        if len(self.support):  # the noise may have tipped an approach under the support
+            rot = _frames(self.free_side(rot[:, :, 2]), rot[:, :, 0])
+        return rot
+
+    def free_side(self, approach: np.ndarray) -> np.ndarray:
+        """Approach directions (n, 3) turned to the free side of every support plane.
+
+        An approach with a component along a support normal ``s`` (a hand coming from
+        under the support) is flipped (a box-like object's face becomes the opposite
+        face, a cylinder's side the other side), then any component left is removed
+        (the approach made parallel to the plane); a bounded pass per plane.
+        """
+        z = np.array(approach, dtype=float)
+        for _ in range(2):
+            for s in self.support:
+                up = z @ s
+                z = np.where((up > 0.0)[:, None], -z, z)  # flip to the free side
+        for s in self.support:
+            up = z @ s
+            z = z - np.maximum(up, 0.0)[:, None] * s  # a second plane may have flipped it back
+        norm = np.linalg.norm(z, axis=1, keepdims=True)
+        fallback = np.broadcast_to(-self.support[0], z.shape)
+        return np.where(norm > 1e-6, z / np.maximum(norm, 1e-12), fallback)
 
     def wrist_score(self, rotations: np.ndarray) -> np.ndarray:
         """How well wrists match the class's approach, in [0, 1].
@@ -210,16 +254,36 @@ def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: 
     return lo + u * (hi - lo)
 
 
+#: Rounds of wrist re-sampling when the palm alone comes too close to the scene.
+WRIST_SCREEN_ROUNDS = 6
+
+
 def sample_particles(
-    model: GraspModel, shape: ShapeClass, n: int, rng: np.random.Generator, ranges: PreshapeRanges
+    model: GraspModel, shape: ShapeClass, n: int, rng: np.random.Generator, ranges: PreshapeRanges,
+    wrist_position: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Unverified guided particles (n, 19)."""
+    """Unverified guided particles (n, 19).
+
+    With a scene in the model, wrists whose palm (swept over the approach) comes within
+    the clearance of the scene are drawn again, at most :data:`WRIST_SCREEN_ROUNDS`
+    times (the cheap part of the scene check, before any finger is closed).
+    """
     x = np.empty((n, N_DIMS))
     x[:, LAYOUT.fingers] = sample_fingers(model, n, rng, ranges)
-    x[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
     per_width = shape.standoff_per_width if ranges.standoff_per_width is None else ranges.standoff_per_width
-    top = max(ranges.standoff_max, per_width * float(shape.extents[-1]))
-    x[:, STANDOFF_INDEX] = rng.uniform(0.0, min(top, model.upper[STANDOFF_INDEX]), n)
+    top = min(max(ranges.standoff_max, per_width * float(shape.extents[-1])), model.upper[STANDOFF_INDEX])
+    x[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+    x[:, STANDOFF_INDEX] = rng.uniform(0.0, top, n)
+    if model.scene is None:
+        return x
+    todo = np.arange(n)
+    for _ in range(WRIST_SCREEN_ROUNDS):
+        bad = palm_scene_margins(model, wrist_transforms(model, x[todo], wrist_position)) < 0.0
+        todo = todo[bad]
+        if not len(todo):
+            break
+        x[todo, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(len(todo), rng))
+        x[todo, STANDOFF_INDEX] = rng.uniform(0.0, top, len(todo))
     return x
 
 
@@ -247,6 +311,8 @@ class GuidedGenerator:
     max_batches: int = 12
     refill: int = 64
     evaluations: int = 0
+    #: Decodes the scene check rejected (a scene only).
+    scene_rejections: int = 0
 
     def __post_init__(self) -> None:
         self._pool = np.empty((0, N_DIMS))
@@ -271,6 +337,10 @@ class GuidedGenerator:
             self.evaluations += len(todo)
             bad = decoded.finger_illegal(limit)
             valid[todo] = ~bad.any(axis=1) & (decoded.n_contacts >= 2)
+            if decoded.palm_scene_margin is not None:
+                valid[todo] &= decoded.palm_scene_margin >= 0.0
+                self.scene_rejections += int(((decoded.scene_margin < 0).any(axis=1)
+                                              | (decoded.palm_scene_margin < 0)).sum())
             retry = bad.any(axis=1)
             if round_ == self.verification_rounds or not retry.any():
                 break
@@ -299,7 +369,8 @@ class GuidedGenerator:
         count = 0
         for _ in range(self.max_batches):
             batch = max(2 * (n - count), 16)
-            x, valid = self.verify(sample_particles(self.model, self.shape, batch, self.rng, self.ranges))
+            x, valid = self.verify(sample_particles(self.model, self.shape, batch, self.rng, self.ranges,
+                                                         self.wrist_position))
             found.append(x[valid])
             spare = x[~valid]
             count += int(valid.sum())
@@ -317,6 +388,14 @@ class GuidedGenerator:
         """
         if len(self._pool) < k:
             fresh, n_valid = self.generate(max(2 * k, self.refill))
+            if n_valid == 0 and self.model.scene is not None:
+                raise PlanningError(
+                    f"scene: no collision-free grasp: GRG found no grasp with 2 or more fingertip "
+                    f"contacts that keeps the clearance ({self.model.scene_clearance * 1000:.1f} mm) from "
+                    f"the support planes and obstacles at the grasp and along the approach "
+                    f"({self.evaluations} candidate decodes, {self.scene_rejections} rejected by the scene); "
+                    "the scene leaves no room for the hand", "scene"
+                )
             if n_valid == 0:
                 raise PlanningError(
                     f"object: GRG found no grasp with 2 or more fingertip contacts in {self.evaluations} "

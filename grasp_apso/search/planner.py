@@ -3,7 +3,7 @@
 The planner prepares the object (signed-distance grid, cached by mesh hash), classifies
 its shape (GRG parameter factor), runs APSO or the simple PSO over particles of
 :mod:`grasp_apso.geometry.decoder` layout, and verifies the best grasp independently: the
-Ferrari-Canny epsilon with friction cones (:mod:`grasp_apso.quality.measures.measures`) and python-fcl
+Ferrari-Canny epsilon with friction cones (:mod:`grasp_apso.quality.measures`) and python-fcl
 collision checks of the links against the mesh and between fingers
 (:mod:`grasp_apso.geometry.collision`). Results are returned in the planning frame of ``pose``.
 """
@@ -19,17 +19,20 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError, ObjectTooLargeError, PlanningError
-from ..geometry.collision import FclReport, mesh_bvh, verify_with_fcl
-from ..geometry.decoder import N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model
-from ..quality.fitness import evaluate
-from .grg import GuidedGenerator, ShapeClass, classify_shape
+from ..geometry.collision import mesh_bvh
+from ..geometry.decoder import (
+    N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model, with_scene,
+)
 from ..model.builtin import builtin
-from ..model.hand import FINGER_NAMES, JOINT_NAMES, HandModel, load_hand
+from ..model.hand import JOINT_NAMES, HandModel, load_hand
 from ..model.particle import LAYOUT
-from ..quality.measures import epsilon_quality
-from .candidates import make_candidate
+from ..model.scene import Scene
+from ..quality.fitness import evaluate
+from .archive import LeaderArchive
+from .grg import GuidedGenerator, ShapeClass, classify_shape
 from .options import ALGORITHMS, PlanOptions
 from .result import Contact, GraspCandidate, GraspResult
+from .selection import Checked, Verifier, select_candidates, to_candidates
 from .swarm import IterationStats, run_swarm
 
 __all__ = [
@@ -40,23 +43,41 @@ __all__ = [
 #: Objects whose smallest extent exceeds this cannot be held in a precision grasp.
 MAX_GRASPABLE_WIDTH = 0.16
 MIN_GRASPABLE_SIZE = 0.005
+#: The leaders' archive holds this many times ``max_grasps`` distinct grasps.
+ARCHIVE_FACTOR = 4
+
+
+#: Scene-illegal particles score up to 1 lower, by their depth inside the clearance over
+#: this (m), so that the simple PSO is guided out of the scene too.
+SCENE_GUIDE = 0.02
 
 
 class GraspProblem:
-    """The optimisation problem of one plan: decode + fitness, and GRG draws."""
+    """The optimisation problem of one plan: decode + fitness, and GRG draws.
 
-    def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator):
+    ``archive`` (optional) observes every evaluation: the leaders' archive of the
+    candidates (:mod:`grasp_apso.search.archive`); it changes nothing in the search.
+    """
+
+    def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator,
+                 archive: LeaderArchive | None = None):
         self.model = model
         self.shape = shape
         self.mu = options.friction
         self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
         self.lower, self.upper = model.lower, model.upper
         self.generator = GuidedGenerator(model, shape, rng, self.wrist_position)
+        self.archive = archive
         self._evaluations = 0
 
     @property
     def evaluations(self) -> int:
         return self._evaluations + self.generator.evaluations
+
+    @property
+    def distinct_candidates(self) -> int:
+        """Entries of the leaders' archive so far (the action feedback)."""
+        return 0 if self.archive is None else len(self.archive)
 
     def decode(self, x: np.ndarray) -> DecodedGrasps:
         return decode(self.model, x, self.wrist_position)
@@ -65,7 +86,12 @@ class GraspProblem:
         decoded = self.decode(x)
         self._evaluations += len(x)
         terms = evaluate(self.model, decoded, self.shape.wrist_score(decoded.wrist[:, :3, :3]), self.mu)
-        return terms.fitness, terms.active, decoded.n_contacts
+        fitness = terms.fitness
+        if self.model.scene is not None:
+            fitness = fitness - np.minimum(decoded.scene_violation / SCENE_GUIDE, 1.0)
+        if self.archive is not None:
+            self.archive.offer(x, fitness, terms.active, decoded.wrist)
+        return fitness, terms.active, decoded.n_contacts
 
     def guided(self, k: int) -> np.ndarray:
         return self.generator.draw(k)
@@ -112,8 +138,10 @@ def plan(
     hand: HandModel | None = None,
     progress: Callable[[IterationStats], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
+    scene: Scene | None = None,
 ) -> GraspResult:
-    """Plan a precision grasp of ``obj`` with APSO (or the simple PSO).
+    """Plan precision grasps of ``obj`` with APSO (or the simple PSO): up to
+    ``options.max_grasps`` ranked, distinct, verified candidates.
 
     Parameters
     ----------
@@ -130,46 +158,104 @@ def plan(
         Called once per iteration.
     should_stop : callable() -> bool, optional
         Polled before every iteration; True stops the plan (``cancelled`` in the result).
+    scene : Scene, optional
+        Support planes and obstacles in the planning frame. No returned grasp, pre-grasp
+        or approach comes within ``options.clearance`` of it (checked in the decoder and
+        again with python-fcl); wrists are sampled from the free side of the planes.
 
     Raises
     ------
     PlanningError
         The object cannot be grasped by this hand (too large, too small, no valid
-        particle found by GRG).
-    ValueError
-        Invalid options or pose.
+        particle found by GRG), or the scene leaves no room for the hand ("no
+        collision-free grasp").
+    SceneError
+        The object sinks into a support plane or penetrates an obstacle (``object_pose``).
+    InputError
+        Invalid options, pose or scene.
     """
     options = options or PlanOptions()
     rng = rng if rng is not None else np.random.default_rng()
     pose = np.eye(4) if pose is None else np.asarray(pose, dtype=float)
     if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"pose: expected a finite (4, 4) transform, got shape {pose.shape}")
+        raise InputError(f"pose: expected a finite (4, 4) transform, got shape {pose.shape}")
+    scene_obj = _scene_in_object_frame(obj, pose, scene)
 
     t0 = time.perf_counter()
     model = prepare(obj, hand, options)
     shape = classify_shape(obj)
+    if scene_obj is not None:
+        model = with_scene(model, scene_obj, options.clearance, options.approach_distance)
+        if len(scene_obj.planes):
+            shape = shape.with_support(scene_obj.planes[:, :3])
     preparation = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    problem = GraspProblem(model, shape, options, rng)
+    archive = LeaderArchive(ARCHIVE_FACTOR * options.max_grasps, options.min_orientation_gap,
+                            options.min_position_gap)
+    problem = GraspProblem(model, shape, options, rng, archive)
     adaptive = options.algorithm == "apso"
     swarm = run_swarm(problem, options.swarm_options(), rng, adaptive, progress, should_stop)
     best = swarm.best if np.isfinite(swarm.best_fitness) else np.clip(swarm.best, model.lower, model.upper)
-    result = _finish(model, problem, best[None, :], swarm, options, pose, shape, preparation, t1)
-    if not (result.valid and result.force_closure):
+    verifier = Verifier(model, problem, options, pose, _cached_bvh(obj), scene_obj)
+    primary, runner_up = verifier.check_one(best), False
+    if not (primary.valid and primary.force_closure):
         # The fitness rewards balance but does not guarantee force closure: prefer a
         # slightly less fit grasp that the independent epsilon measure accepts.
-        x = _closure_runner_up(model, problem, swarm, best, options)
+        x = _closure_runner_up(model, problem, swarm, best, options, verifier)
         if x is not None:
-            other = _finish(model, problem, x[None, :], swarm, options, pose, shape, preparation, t1)
+            other = verifier.check_one(x)
             if other.valid and other.force_closure:
-                result = replace(other, runner_up=True)
-    return result
+                primary, runner_up = other, True
+    if scene_obj is not None and not primary.scene_clear:
+        primary, runner_up = None, False
+    others, considered, rejected = select_candidates(verifier, primary, archive, options.max_grasps)
+    checked = ([primary] if primary is not None else []) + others
+    if not checked:
+        raise PlanningError(
+            f"scene: no collision-free grasp: none of the {len(archive) + 1} best distinct grasps the search "
+            f"found keeps the clearance ({options.clearance * 1000:.1f} mm) from the support planes and "
+            "obstacles at the grasp, the pre-grasp and along the approach (python-fcl)", "scene")
+    candidates, order = to_candidates(model.hand, checked, pose, options.approach_distance,
+                                      pinned_first=scene_obj is None)
+    top = checked[int(order[0])]
+    runner_up = runner_up and top is primary
+    message = _candidates_message(len(candidates), options.max_grasps, len(archive), considered, rejected,
+                                  scene_obj is not None)
+    return _result(top, candidates, message, runner_up, swarm, problem, options, pose, shape, preparation, t1)
+
+
+def _scene_in_object_frame(obj, pose: np.ndarray, scene) -> Scene | None:
+    """The scene moved into the object frame (None when absent or empty), after checking
+    that the object (placed by ``pose``) neither sinks into a plane nor penetrates an obstacle."""
+    if scene is None:
+        return None
+    if not isinstance(scene, Scene):
+        raise InputError(f"scene: expected a Scene, got {type(scene).__name__}", "scene")
+    if scene.is_empty:
+        return None
+    vertices = np.asarray(obj.mesh.vertices, dtype=float) @ pose[:3, :3].T + pose[:3, 3]
+    scene.check_object_placement(vertices, "object_pose")
+    return scene.transformed(np.linalg.inv(pose))
+
+
+def _candidates_message(n: int, wanted: int, archived: int, considered: int, rejected: int, scene: bool) -> str:
+    """Why fewer than ``wanted`` candidates came back ("" when all did)."""
+    if n >= wanted:
+        return ""
+    checks = "epsilon, python-fcl collisions with the object" + (
+        ", the scene and the approach" if scene else "")
+    return (
+        f"{n} of {wanted} grasps: the search kept {archived} distinct leaders (wrists at least the "
+        f"orientation or position gap apart), {considered} of them distinct from the best grasp, "
+        f"{rejected} failed verification ({checks}); more particles or iterations find more"
+    )
 
 
 def warm_up() -> float:
-    """Load the compiled kernels (:mod:`grasp_apso.geometry.kernels`, :mod:`grasp_apso.quality.measures.kernels`)
-    before the first plan.
+    """Load the compiled kernels (:mod:`grasp_apso.geometry.kernels`,
+    :mod:`grasp_apso.geometry.scene_kernels`, :mod:`grasp_apso.quality.kernels`, the
+    archive's) before the first plan.
 
     They are numba functions cached on disk: a process loads them on its first use,
     about 0.3 s, and once after an install compiles them, about 5 s. This plans a tiny
@@ -181,10 +267,15 @@ def warm_up() -> float:
     cube = builtin("cube")
     plan(cube, options=PlanOptions(particles=2, neighborhood_size=2, iterations=1), rng=np.random.default_rng(0))
     prepare(cube).sdf.distance(np.zeros(3))  # plain look-ups: the fixed-wrist path's palm check
+    # the scene kernels (their signatures do not depend on which primitives a scene holds)
+    table = Scene.table_under(np.asarray(cube.mesh.vertices))
+    scene_model = with_scene(prepare(cube), table, 0.005, 0.08)
+    decode(scene_model, 0.5 * (scene_model.lower + scene_model.upper)[None, :])
     return time.perf_counter() - t0
 
 
-def _closure_runner_up(model, problem, swarm, best: np.ndarray, options: PlanOptions) -> np.ndarray | None:
+def _closure_runner_up(model, problem, swarm, best: np.ndarray, options: PlanOptions,
+                       verifier: Verifier) -> np.ndarray | None:
     """The fittest personal best after ``best`` that is legal and force closure, or None.
 
     The candidates are decoded in one batch; the epsilon measure (about 5 ms each) runs
@@ -198,20 +289,10 @@ def _closure_runner_up(model, problem, swarm, best: np.ndarray, options: PlanOpt
     legal = decoded.legal(model.settings.max_penetration)
     for i in np.flatnonzero(legal & (decoded.n_contacts >= 2)):
         contact = decoded.contact[i]
-        _, closure = _epsilon(model, options, decoded.contact_points[i][contact],
-                              decoded.contact_normals[i][contact])
+        _, closure = verifier.epsilon(decoded.contact_points[i][contact], decoded.contact_normals[i][contact])
         if closure:
             return x[i]
     return None
-
-
-def _epsilon(model, options: PlanOptions, points: np.ndarray, normals: np.ndarray) -> tuple[float, bool]:
-    """Ferrari-Canny epsilon and force closure of contacts (k, 3) on the model's object."""
-    obj = model.obj
-    return epsilon_quality(
-        points, normals, np.asarray(obj.center_of_mass, dtype=float), mu=options.friction,
-        edges=options.friction_edges, torque_scale=float(obj.characteristic_radius),
-    )
 
 
 def _runner_ups(swarm, best: np.ndarray, k: int) -> list[np.ndarray]:
@@ -231,49 +312,23 @@ def _runner_ups(swarm, best: np.ndarray, k: int) -> list[np.ndarray]:
     return out
 
 
-def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> GraspResult:
-    decoded = problem.decode(x)
-    terms = evaluate(model, decoded, shape.wrist_score(decoded.wrist[:, :3, :3]), options.friction)
-    obj = model.obj
-    contact = decoded.contact[0]
-    points = decoded.contact_points[0][contact]
-    normals = decoded.contact_normals[0][contact]
-    if contact.sum() >= 2:
-        eps, closure = _epsilon(model, options, points, normals)
-    else:
-        eps, closure = 0.0, False
-    hand = model.hand
-    report = verify_with_fcl(
-        decoded.joints[0], np.array([*hand.link_radii[:2], hand.pad_radius]), _cached_bvh(obj),
-        FINGER_NAMES, penetration_tolerance=0.001, allowed_overlap=model.settings.finger_overlap,
-    )
+def _result(top: Checked, candidates, message: str, runner_up: bool, swarm, problem, options: PlanOptions,
+            pose: np.ndarray, shape, preparation: float, t1: float) -> GraspResult:
+    """The GraspResult whose top-level fields are ``top`` = ``candidates[0]``."""
+    best = candidates[0]
     rot, trans = pose[:3, :3], pose[:3, 3]
-    contacts = tuple(
-        Contact(finger=FINGER_NAMES[f], position=rot @ decoded.contact_points[0, f] + trans,
-                normal=rot @ decoded.contact_normals[0, f])
-        for f in np.flatnonzero(contact)
-    )
-    closed = decoded.closed[0]
-    wrist_in_object = decoded.wrist[0]
-    legal = bool(decoded.legal(model.settings.max_penetration)[0])
-    valid = legal and len(contacts) >= 2 and report.legal
-    candidate = make_candidate(
-        hand, 0, x[0], closed, wrist_in_object, pose, options.approach_distance,
-        grasp_quality=0.0, fitness=float(terms.fitness[0]), epsilon=float(eps),
-        force_closure=bool(closure), valid=valid, contacts=contacts,
-    )
     return GraspResult(
-        configuration=LAYOUT.cg(candidate.joint_positions),
+        configuration=LAYOUT.cg(best.joint_positions),
         joint_names=JOINT_NAMES,
-        joint_positions=candidate.joint_positions.copy(),
-        standoff=float(closed[LAYOUT.standoff]),
-        wrist_pose=pose @ wrist_in_object,
-        wrist_in_object=wrist_in_object,
-        fitness=float(terms.fitness[0]),
-        epsilon=float(eps),
-        force_closure=bool(closure),
-        contacts=contacts,
-        valid=valid,
+        joint_positions=best.joint_positions.copy(),
+        standoff=float(top.closed[LAYOUT.standoff]),
+        wrist_pose=best.wrist_pose.copy(),
+        wrist_in_object=top.wrist_in_object.copy(),
+        fitness=top.fitness,
+        epsilon=top.epsilon,
+        force_closure=top.force_closure,
+        contacts=top.contacts,
+        valid=top.valid,
         history=tuple(swarm.history),
         iterations_run=swarm.iterations_run,
         evaluations=problem.evaluations,
@@ -282,11 +337,13 @@ def _finish(model, problem, x, swarm, options, pose, shape, preparation, t1) -> 
         cancelled=swarm.cancelled,
         algorithm=options.algorithm,
         shape_class=shape.name,
-        fcl=report,
-        joints=decoded.joints[0] @ rot.T + trans,
-        max_penetration=float(decoded.penetration[0].max()),
-        tip_gaps=decoded.tip_gap[0].copy(),
-        candidates=(candidate,),
+        fcl=top.fcl,
+        joints=top.joints @ rot.T + trans,
+        max_penetration=top.max_penetration,
+        tip_gaps=top.tip_gaps.copy(),
+        runner_up=runner_up,
+        candidates=candidates,
+        candidates_message=message,
     )
 
 
@@ -330,7 +387,10 @@ class Objective:
         swarm = SwarmResult(best=x_best, best_fitness=float(self(x_best[None])[0]), history=list(history),
                             iterations_run=len(history))
         options = PlanOptions(**{**self.options.__dict__, "algorithm": "apso"})
-        res = _finish(self.model, self.problem, x_best[None, :], swarm, options,
-                      np.eye(4) if pose is None else np.asarray(pose, float), self.shape,
+        pose = np.eye(4) if pose is None else np.asarray(pose, float)
+        verifier = Verifier(self.model, self.problem, options, pose, _cached_bvh(self.model.obj))
+        top = verifier.check_one(x_best)
+        candidates, _ = to_candidates(self.model.hand, [top], pose, options.approach_distance, pinned_first=True)
+        res = _result(top, candidates, "", False, swarm, self.problem, options, pose, self.shape,
                       self.preparation_time, self._started)
         return GraspResult(**{**res.__dict__, "algorithm": algorithm})

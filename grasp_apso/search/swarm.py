@@ -89,6 +89,8 @@ class IterationStats:
     evaluations: int
     elapsed: float
     replaced: int = 0
+    #: Distinct candidates the leaders' archive holds so far (:mod:`grasp_apso.search.archive`).
+    distinct_candidates: int = 0
 
 
 @dataclass
@@ -195,6 +197,7 @@ def run_swarm(
             iteration=it, iterations=options.iterations, best_fitness=gbest_f,
             mean_fitness=mean_active, active_particles=int(active.sum()), best_contacts=gbest_nc,
             evaluations=problem.evaluations, elapsed=time.perf_counter() - start, replaced=replaced,
+            distinct_candidates=int(getattr(problem, "distinct_candidates", 0)),
         )
         result.history.append(stats)
         result.iterations_run = it
