@@ -176,3 +176,23 @@ def test_fish_is_decomposed_and_cached(tmp_path, monkeypatch):
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="decomposition.threshold"):
         ConvexSettings(threshold=5.0)
+
+
+def test_plan_with_simulate_fills_every_candidate_and_ranks_held_first():
+    """PlanOptions.simulate: every candidate carries the MuJoCo verdict; held ones come first."""
+    from grasp_apso.model.builtin import builtin
+    from grasp_apso.search.planner import PlanOptions, plan
+    from grasp_apso.search.result import SIM_DROPPED, SIM_HELD
+
+    result = plan(builtin("sphere"), options=PlanOptions(particles=30, iterations=15, max_grasps=3, simulate=True),
+                  rng=np.random.default_rng(3))
+    assert len(result.candidates) >= 2
+    verdicts = [c.sim_result for c in result.candidates]
+    assert all(v in (SIM_HELD, SIM_DROPPED) for v in verdicts)
+    assert all(np.isfinite(c.sim_max_shift) and np.isfinite(c.sim_max_turn) for c in result.candidates)
+    # held first: no dropped candidate before a held one, and the quality is sorted
+    assert verdicts == sorted(verdicts, reverse=True)
+    quality = [c.grasp_quality for c in result.candidates]
+    assert quality == sorted(quality, reverse=True)
+    held = [c for c in result.candidates if c.sim_result == SIM_HELD]
+    assert all(c.grasp_quality > 0.5 for c in held)  # (2 held + 2 force closure + f) / 6

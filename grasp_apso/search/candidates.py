@@ -12,7 +12,7 @@ import numpy as np
 
 from ..model.hand import HandModel, rotation_to_wrist_angles
 from ..model.particle import LAYOUT
-from .result import Contact, GraspCandidate
+from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate
 
 __all__ = ["planning_joint_positions", "pre_grasp_pose", "finger_points", "make_candidate"]
 
@@ -56,6 +56,7 @@ def make_candidate(
     valid: bool,
     contacts: tuple[Contact, ...],
     scene_distance: float = np.inf,
+    sim=None,
 ) -> GraspCandidate:
     """Build one candidate.
 
@@ -68,6 +69,9 @@ def make_candidate(
     pose : (4, 4) float
         Object -> planning frame.
     approach_distance : float, m
+    sim : SimResult, optional
+        The simulation check of this grasp (fills ``sim_result``, ``sim_max_shift``,
+        ``sim_max_turn``); None = not simulated.
     """
     wrist_pose = pose @ wrist_in_object
     pre_pose = pre_grasp_pose(wrist_pose, approach_distance)
@@ -87,6 +91,9 @@ def make_candidate(
         valid=bool(valid),
         contacts=contacts,
         scene_distance=float(scene_distance),
+        sim_result=SIM_NOT_RUN if sim is None else (SIM_HELD if sim.held else SIM_DROPPED),
+        sim_max_shift=np.nan if sim is None else float(sim.max_shift),
+        sim_max_turn=np.nan if sim is None else float(sim.max_turn),
         wrist_in_object=np.array(wrist_in_object, dtype=float),
         joints=finger_points(hand, closed_values, wrist_pose),
         pre_grasp_joints=finger_points(hand, open_values, pre_pose),

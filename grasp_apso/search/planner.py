@@ -33,6 +33,7 @@ from .grg import GuidedGenerator, ShapeClass, classify_shape
 from .options import ALGORITHMS, PlanOptions
 from .result import Contact, GraspCandidate, GraspResult
 from .selection import Checked, Verifier, select_candidates, to_candidates
+from .simulated import simulate_checked
 from .swarm import IterationStats, run_swarm
 
 __all__ = [
@@ -216,8 +217,9 @@ def plan(
             f"scene: no collision-free grasp: none of the {len(archive) + 1} best distinct grasps the search "
             f"found keeps the clearance ({options.clearance * 1000:.1f} mm) from the support planes and "
             "obstacles at the grasp, the pre-grasp and along the approach (python-fcl)", "scene")
+    sims = simulate_checked(model.hand, obj, pose, checked, scene, options.friction) if options.simulate else None
     candidates, order = to_candidates(model.hand, checked, pose, options.approach_distance,
-                                      pinned_first=scene_obj is None)
+                                      pinned_first=scene_obj is None and sims is None, sims=sims)
     top = checked[int(order[0])]
     runner_up = runner_up and top is primary
     message = _candidates_message(len(candidates), options.max_grasps, len(archive), considered, rejected,

@@ -212,17 +212,21 @@ def select_candidates(
 
 def to_candidates(
     hand: HandModel, checked: list[Checked], pose: np.ndarray, approach_distance: float, pinned_first: bool,
+    sims: list | None = None,
 ) -> tuple[GraspCandidate, ...]:
     """Rank verified grasps and build the candidates (planning frame), best first.
 
     ``pinned_first``: ``checked[0]`` stays first whatever its score (the free-space plan's
     best grasp, as before); the others are sorted by :func:`~.ranking.grasp_quality`.
+    ``sims``: one :class:`~grasp_apso.simulation.SimResult` per entry of ``checked`` when
+    the simulation ran (held grasps then rank first, and the ``sim_*`` fields are filled).
     Returns the candidates and the order (indices into ``checked``).
     """
     if not checked:
         return (), np.zeros(0, dtype=int)
+    held = None if sims is None else np.array([s.held for s in sims], dtype=bool)
     quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
-                            np.array([c.force_closure for c in checked]))
+                            np.array([c.force_closure for c in checked]), held)
     eps = np.array([c.epsilon for c in checked])
     if pinned_first:
         rest = 1 + rank_order(quality[1:], eps[1:])
@@ -236,5 +240,6 @@ def to_candidates(
             hand, rank, c.x, c.closed, c.wrist_in_object, pose, approach_distance,
             grasp_quality=float(quality[i]), fitness=c.fitness, epsilon=c.epsilon,
             force_closure=c.force_closure, valid=c.valid, contacts=c.contacts, scene_distance=c.scene_distance,
+            sim=None if sims is None else sims[i],
         ))
     return tuple(out), order
