@@ -2,12 +2,14 @@
 # THE demo of grasp_apso (`make demo`): plan a grasp through the real ROS 2 node.
 #   1. set-up if needed (scripts/setup.sh; `make demo` always runs it first)
 #   2. start the node (planner_node) in the background, in a DDS domain of its own
-#   3. wait for its service, call it for a built-in object, print the result and how many
-#      progress messages arrived on /grasp_apso/progress (grasp_apso/demo_client.py)
+#   3. wait for its service, call it for a built-in object resting on a table (one support
+#      plane under its lowest point; --no-table for free space) with max_grasps 5, print the
+#      best grasp, the ranked candidates (quality, epsilon, wrist, approach) and how many
+#      progress messages arrived on /grasp_apso/progress (grasp_apso/ros/demo_client.py)
 #   4. stop the node cleanly (SIGINT, wait), also when something fails
 #
 # Usage: bash scripts/demo.sh [sphere|cube|barrel|fish] [demo_client options...]
-#        e.g. bash scripts/demo.sh cube --algorithm pso --seed 3
+#        e.g. bash scripts/demo.sh cube --algorithm pso --seed 3 --grasps 3 --no-table
 # Environment:
 #   DEMO_ROS_DOMAIN_ID=N   DDS domain for the node and the client (default: one from the PID)
 set -euo pipefail
@@ -87,7 +89,7 @@ if ! kill -0 "$NODE_PID" 2>/dev/null; then
 fi
 stop_node
 case "$client_status" in
-  0) say "done: the node planned a valid grasp of the $OBJECT" ;;
+  0) say "done: the node planned valid grasps of the $OBJECT" ;;
   2) say "the node answered, but did not find a valid grasp (see the message above)" ;;
   *) say "error: the demo client failed (status $client_status)" ;;
 esac

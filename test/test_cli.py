@@ -96,7 +96,20 @@ def test_apso_run_prints_the_table_and_writes_pictures_and_json(tmp_path, capsys
     # JSON for scripts: SI units, joints within the hand limits.
     doc = json.loads(json_path.read_text())
     result = doc["results"]["apso"]
-    assert doc["options"] == {"particles": 12, "iterations": 6, "seed": 1, "friction": 0.5}
+    assert doc["options"] == {"particles": 12, "iterations": 6, "seed": 1, "friction": 0.5, "clearance": 0.005,
+                              "approach_distance": 0.08, "grasps": 1, "simulate": False, "table": False,
+                              "obstacles": []}
+    assert doc["scene"] is None
+    # Every candidate, best first; candidates[0] is the grasp of the top-level fields.
+    assert len(result["candidates"]) >= 1
+    best = result["candidates"][0]
+    assert best["rank"] == 0 and best["joint_positions"] == result["joint_positions"]
+    pre = np.array(best["pre_grasp_pose"]["position"])
+    grasp = np.array(best["wrist_pose"]["position"])
+    approach = np.array(best["approach_direction"])
+    assert np.isclose(np.linalg.norm(approach), 1.0)
+    assert np.allclose(grasp - pre, 0.08 * approach, atol=1e-9)  # pre-grasp 80 mm back along the approach
+    assert best["sim_result"] == -1 and best["sim"] == "not simulated"
     assert result["joint_names"] == list(JOINT_NAMES)
     q = np.array(result["joint_positions"])
     assert q.shape == (18,)
@@ -160,6 +173,15 @@ def test_quiet_prints_one_line_per_run(capsys):
     (["--friction", "-1"], ["--friction"]),
     (["--object", "cube", "--mesh", "x.stl"], ["--mesh", "--object"]),
     (["--frobnicate"], ["--frobnicate"]),
+    (["--obstacle", "box:0.1,0,0"], ["--obstacle", "box:0.1,0,0", "6 numbers", "x,y,z,sx,sy,sz"]),
+    (["--obstacle", "cone:0,0,0,1"], ["--obstacle", "cone", "sphere:x,y,z,r", "cylinder:x,y,z,h,r"]),
+    (["--obstacle", "sphere:0,0,a,0.1"], ["--obstacle", "expected numbers"]),
+    (["--obstacle", "sphere:0.2,0,0,0.05", "--obstacle", "sphere:0.3,0,0,-0.05"], ["--obstacle 2"]),
+    (["--obstacle", "cylinder:0.2,0,0,nan,0.1"], ["--obstacle", "finite"]),
+    (["--clearance", "-0.01"], ["--clearance", "-0.01"]),
+    (["--approach-distance", "-1"], ["--approach-distance"]),
+    (["--grasps", "0"], ["--grasps", "0"]),
+    (["--grasps", "51"], ["--grasps", "51"]),
 ])
 def test_bad_input_exits_2_with_a_one_line_message(argv, words, tmp_path, capsys):
     code, out, err = _run(capsys, *SMALL, *argv, "--out", str(tmp_path))
@@ -259,3 +281,167 @@ def test_grasp_title_names_the_quality():
     title = plotting.grasp_title(R(), "sphere")
     assert "sphere" in title and "APSO" in title and "0.812" in title and "0.046" in title
     assert "force closure: yes" in title and "0 contacts: none" in title
+
+
+# ----------------------------------------------------------------------------- scene, candidates, summary
+from dataclasses import replace  # noqa: E402
+
+from grasp_apso.errors import SceneError, UsageError  # noqa: E402
+from grasp_apso.model.builtin import builtin  # noqa: E402
+from grasp_apso.model.scene import BOX, CYLINDER, SPHERE  # noqa: E402
+from grasp_apso.search.planner import PlanOptions, plan  # noqa: E402
+from grasp_apso.tools import cli_inputs, summary  # noqa: E402
+from grasp_apso.tools.palette import APPROACH_COLOR, SCENE_COLOR, rgb  # noqa: E402
+
+
+def test_obstacles_and_table_are_parsed_in_the_planning_frame():
+    fish = builtin("fish")
+    scene = cli_inputs.build_scene(fish, True, ["box:0.1,0,0.02,0.04,0.2,0.1", "sphere:0,0.1,0,0.03",
+                                                "cylinder:-0.2,0,0,0.3,0.02"])
+    lowest = float(np.asarray(fish.mesh.vertices)[:, 2].min())
+    assert np.allclose(scene.planes, [[0.0, 0.0, 1.0, -lowest]])  # z = lowest point, normal up
+    kinds = [(o.kind, o.dimensions, tuple(o.pose[:3, 3])) for o in scene.obstacles]
+    assert kinds == [(BOX, (0.04, 0.2, 0.1), (0.1, 0.0, 0.02)), (SPHERE, (0.03,), (0.0, 0.1, 0.0)),
+                     (CYLINDER, (0.3, 0.02), (-0.2, 0.0, 0.0))]
+    assert all(np.allclose(o.pose[:3, :3], np.eye(3)) for o in scene.obstacles)
+    assert cli_inputs.build_scene(fish, False, []) is None
+    with pytest.raises(UsageError):
+        cli_inputs.parse_obstacle("box:1,2,3,4,5")
+
+
+def test_library_errors_are_named_after_the_options():
+    assert cli_inputs.cli_message(SceneError("obstacles[1]: the object penetrates it by 3.0 mm")) == \
+        "--obstacle 2: the object penetrates it by 3.0 mm"
+    assert cli_inputs.cli_message(SceneError("support_planes[0]: the object sinks 7 mm into it")) == \
+        "--table: the object sinks 7 mm into it"
+    assert cli_inputs.cli_message(ValueError("approach_distance: must be >= 0")) == \
+        "--approach-distance: must be >= 0"
+    assert cli_inputs.cli_message(ValueError("max_grasps: 0 not in 1..50")) == "--grasps: 0 not in 1..50"
+    assert cli_inputs.cli_message(ValueError("something else: x")) == "something else: x"
+
+
+@pytest.fixture(scope="module")
+def cube_result():
+    return plan(builtin("cube"), options=PlanOptions(particles=12, iterations=6), rng=np.random.default_rng(0))
+
+
+def test_one_summary_wording_for_the_cli_and_the_node(cube_result):
+    r = cube_result
+    assert r.valid and summary.why_not_valid(r) == ""
+    line = summary.grasp_summary(r, iterations=6, elapsed=1.5)
+    assert line.startswith(f"{r.n_contacts} contacts, fitness {r.fitness:.3f}, epsilon {r.epsilon:.4f}, "
+                           f"force closure {'yes' if r.force_closure else 'no'}, 6 of 6 iterations in 1.50 s")
+    assert summary.grasp_verdict(r, 6, 1.5) == "grasp found: " + line
+    bad = replace(r, valid=False, contacts=r.contacts[:1])
+    assert summary.why_not_valid(bad) == "only 1 fingertip contact"
+    assert summary.grasp_verdict(bad).startswith("no valid grasp found (only 1 fingertip contact): 1 contacts")
+    assert "NO valid grasp (only 1 fingertip contact)" in summary.format_report(bad, HAND, 0.5)
+    # several candidates, simulated: counted in the one line and tabulated
+    c0 = r.candidates[0]
+    cands = (c0, replace(c0, id="g1", rank=1, grasp_quality=0.1, force_closure=False, sim_result=0,
+                         sim_max_shift=0.07, sim_max_turn=0.5))
+    many = replace(r, candidates=(replace(c0, sim_result=1, sim_max_shift=0.002, sim_max_turn=0.01), cands[1]),
+                   candidates_message="2 of 5 requested: the search found no more distinct valid grasps")
+    line = summary.grasp_summary(many)
+    assert "; 2 candidates (1 force closure); simulation: 1 of 2 held; 2 of 5 requested" in line
+    table = summary.format_candidates(many).splitlines()
+    assert "rank" in table[1] and "simulation" in table[1] and "approach" in table[1]
+    first, second = table[2].split(), table[3].split()
+    assert first[0] == "1" and "held" in first and second[0] == "2" and "dropped" in second
+    assert "70.0" in second and f"{np.degrees(0.5):.1f}" in second  # shift mm, turn deg
+    assert summary.approach_angle_from_above(np.array([0, 0, -1.0]), np.array([0, 0, 1.0])) == pytest.approx(0)
+    assert summary.approach_angle_from_above(np.array([1.0, 0, 0]), np.array([0, 0, 1.0])) == pytest.approx(90)
+
+
+def _pixels_near(path, color, alpha, tol=0.02):
+    """Share of pixels whose colour is ``color`` blended at ``alpha`` over white (or solid)."""
+    image = mpimg.imread(path)[..., :3]
+    target = np.array(rgb(color))
+    blended = alpha * target + (1 - alpha)
+    near = lambda c: (np.abs(image - c).max(axis=2) < tol).mean()  # noqa: E731
+    return max(near(blended), near(target))
+
+
+def test_pictures_show_the_table_obstacles_and_the_approach(cube_result, tmp_path):
+    cube = builtin("cube")
+    scene = cli_inputs.build_scene(cube, True, ["box:0.12,0,0,0.04,0.2,0.1", "sphere:0,0.13,0,0.03",
+                                                "cylinder:-0.13,0,0,0.1,0.02"])
+    with_scene = plotting.plot_grasp(cube_result, cube, path=tmp_path / "scene.png", scene=scene)
+    without = plotting.plot_grasp(cube_result, cube, path=tmp_path / "free.png")
+    _check_png(with_scene)
+    assert _pixels_near(with_scene, SCENE_COLOR, 0.22) > 0.02  # the table patch is plain to see
+    assert _pixels_near(without, SCENE_COLOR, 0.22) < 0.2 * _pixels_near(with_scene, SCENE_COLOR, 0.22)
+    for path in (with_scene, without):
+        assert _pixels_near(path, APPROACH_COLOR, 1.0) > 0.0005  # the approach arrow
+    # small multiples: one panel per candidate
+    c0 = cube_result.candidates[0]
+    three = replace(cube_result, candidates=tuple(replace(c0, rank=k, id=f"g{k}") for k in range(3)))
+    path = plotting.plot_candidates(three, cube, path=tmp_path / "cands.png", scene=scene)
+    _check_png(path)
+    with pytest.raises(ValueError):
+        plotting.plot_candidates(replace(cube_result, candidates=()), cube, path=tmp_path / "none.png")
+
+
+def test_camera_keeps_the_table_level():
+    rng = np.random.default_rng(3)
+    up = np.array([0.0, 0.0, 1.0])
+    for _ in range(5):
+        palm, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        for view, (direction, picture_up) in plotting.camera_directions(palm, up).items():
+            if view == "palm":
+                continue
+            assert np.allclose(picture_up, up)
+            d = direction / np.linalg.norm(direction)
+            assert 15 < np.degrees(np.arcsin(d @ up)) < 35  # a little above the table
+
+
+def _json_run(capsys, tmp_path, *argv):
+    path = tmp_path / "run.json"
+    code, out, err = _run(capsys, *SMALL, "--seed", "1", "--out", str(tmp_path), "--json", str(path), *argv)
+    assert code == 0, err
+    return out, json.loads(path.read_text())
+
+
+def test_fish_on_a_table_is_grasped_from_above(tmp_path, capsys):
+    out, doc = _json_run(capsys, tmp_path, "--object", "fish", "--table")
+    assert "scene      table (support plane, normal +z) at z = " in out
+    assert "from above" in out
+    table_z = -doc["scene"]["support_planes"][0][3]
+    assert doc["scene"]["support_planes"][0][:3] == [0.0, 0.0, 1.0]
+    result = doc["results"]["apso"]
+    assert result["valid"]
+    reach = max(HAND.pad_radius, *HAND.link_radii)
+    for cand in result["candidates"]:
+        approach = np.array(cand["approach_direction"])
+        assert approach[2] < -0.5, approach  # from above: within 60 degrees of straight down
+        assert cand["scene_distance"] >= 0.005 - 1e-4  # clearance, by the planner's python-fcl check
+        pre, grasp = np.array(cand["pre_grasp_pose"]["position"]), np.array(cand["wrist_pose"]["position"])
+        assert pre[2] > grasp[2] > table_z + reach
+    _check_png(str(tmp_path / "fish_apso_grasp.png"))
+
+
+def test_grasps_prints_the_candidate_table_and_small_multiples(tmp_path, capsys):
+    out, doc = _json_run(capsys, tmp_path, "--object", "cube", "--table", "--grasps", "3",
+                         "--obstacle", "box:0.1,0,0,0.04,0.2,0.1")
+    cands = doc["results"]["apso"]["candidates"]
+    assert 1 <= len(cands) <= 3
+    assert [c["rank"] for c in cands] == list(range(len(cands)))
+    quality = [c["grasp_quality"] for c in cands]
+    assert quality == sorted(quality, reverse=True) and all(0.0 <= q <= 1.0 for q in quality)
+    assert cands[0]["joint_positions"] == doc["results"]["apso"]["joint_positions"]
+    rows = [l.split() for l in out.split("Candidates:")[1].splitlines()[2:2 + len(cands)]]
+    assert [int(r[0]) for r in rows] == [c["rank"] + 1 for c in cands]
+    assert [float(r[1]) for r in rows] == pytest.approx(quality, abs=1e-3)
+    if len(cands) < 3:
+        assert doc["results"]["apso"]["candidates_message"]
+    _check_png(str(tmp_path / "cube_apso_candidates.png"))
+    assert doc["scene"]["obstacles"][0]["type"] == "BOX"
+
+
+def test_simulate_reports_held_or_dropped_per_candidate(tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    out, doc = _json_run(capsys, tmp_path, "--object", "sphere", "--simulate", "--grasps", "2", "--no-plots")
+    cands = doc["results"]["apso"]["candidates"]
+    assert cands and all(c["sim_result"] in (0, 1) for c in cands)
+    assert all(c["sim_max_shift"] is not None and c["sim_max_turn"] is not None for c in cands)
+    assert "simulation" in out and ("held" in out or "dropped" in out)

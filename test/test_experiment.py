@@ -9,7 +9,7 @@ import pytest
 
 from grasp_apso import experiment
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
@@ -97,3 +97,41 @@ def test_report_has_the_sections_and_columns(quick_run):
 def test_bad_arguments_are_refused(capsys):
     assert experiment.main(["--objects", "teapot", "--quick"]) == 2
     assert "objects" in capsys.readouterr().err
+
+
+def test_part2_table_candidates_and_simulation(quick_run):
+    """The executable-grasp sections: the table against free space, the ranked candidates and
+    the simulation's held rate (or why it did not run), in the JSON and the report."""
+    data = json.loads((quick_run / "results.json").read_text())
+    p2 = data["part2"]
+    assert p2["seeds"] == 1
+    sc = p2["scene"]
+    assert set(sc["objects"]) == {"sphere", "cube"} and sc["max_grasps"] == 3
+    for name, v in sc["objects"].items():
+        for key in ("free", "table"):
+            assert v[key]["runs"] == 1 and 0.0 <= v[key]["success_rate"] <= 1.0
+        for rec in v["runs"]["table"] + v["runs"]["table_candidates"]:
+            # success on a table means the whole hand kept the clearance (python-fcl, every candidate)
+            if rec["success"]:
+                assert rec["valid"] and rec["scene_distance"] >= sc["clearance"] - 1e-9
+        for rec in v["runs"]["free"]:
+            assert rec["scene_distance"] is None and rec["success"] == rec["valid"]
+        cand = v["candidates"]
+        assert 1 <= cand["n_candidates"]["median"] <= 3
+        assert [b["rank"] for b in cand["by_rank"]] == [1, 2, 3]
+        assert cand["by_rank"][0]["n"] == 1
+        if cand["pairs"]:
+            assert cand["distinct_rate"] == 1.0  # the planner's contract: distinct candidates
+        assert cand["time_ratio_to_one"] > 0
+    sim = p2["simulation"]
+    text = (quick_run / "report.md").read_text()
+    for heading in ("## Resting on a table: against free space", "## Ranked candidates",
+                    "## Simulation: does the grasp hold?"):
+        assert heading in text, heading
+    if sim["available"]:
+        for name in ("sphere", "cube"):
+            for key in ("apso", "pso"):
+                assert 0.0 <= sim["objects"][name][key]["held_rate"] <= 1.0
+        assert "10 m/s^2 along +x, -x, +y, -y, +z, -z" in text and "**Held**" in text
+    else:
+        assert "Not run: the simulation could not be imported" in text

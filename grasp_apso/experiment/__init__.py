@@ -13,7 +13,13 @@ over fixed seeds 0..N-1 and writes, into ``--out`` (default ``docs/experiment/``
 - pictures: ``table3_<object>.png`` (best grasp at iterations 5, 20, 50, rows PSO and
   APSO, like the paper's Table 3), ``convergence.png`` (median best fitness per
   iteration with the inter-quartile band), ``convergence_evaluations.png`` (the same
-  against evaluations, with the equal-budget PSO and pyswarms) and ``speed.png``.
+  against evaluations, with the equal-budget PSO and pyswarms) and ``speed.png``;
+- the executable-grasp sections (DESIGN.md Part 2; fewer seeds, ``Part2Config``): the
+  objects resting on a table against free space, ranked candidates (quality by rank,
+  distinctness, time against one grasp) and the MuJoCo held rate of APSO, PSO and the
+  peers with the protocol written out (when :mod:`grasp_apso.simulation` imports).
+
+The Table 3 runs plan one grasp each (``max_grasps=1``, the paper's setting).
 
 Definitions used throughout:
 
@@ -39,6 +45,7 @@ The package, one concern per module:
   over seeds;
 - ``analysis``: the summary per object and approach, the claims, the anomalies;
 - ``speed``: the speed measurements (also run by ``bench/bench_planner.py``);
+- ``part2`` and ``report_part2``: the table, candidates and simulation runs and their sections;
 - ``figures``: the pictures (Table 3 grids, convergence, speed);
 - ``report``, ``results_json``, ``machine``: ``report.md``, ``results.json`` and the
   machine description;
@@ -56,6 +63,7 @@ from .config import (
     PYSWARMS_LOCAL,
     PYSWARMS_OPTIONS,
     ExperimentConfig,
+    Part2Config,
     SpeedConfig,
 )
 from .figures import plot_convergence_panels, plot_evaluation_panels, plot_speed, table3_figures

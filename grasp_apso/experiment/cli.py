@@ -23,6 +23,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--objects", default=None, help="comma-separated subset of sphere,cube,barrel,fish")
     p.add_argument("--no-peers", action="store_true", help="skip pyswarms")
     p.add_argument("--no-speed", action="store_true", help="skip the speed measurements")
+    p.add_argument("--no-part2", action="store_true",
+                   help="skip the table scenario, the ranked candidates and the simulation check")
     return p
 
 
@@ -38,6 +40,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         kw["peers"] = False
     if args.no_speed:
         kw["speed"] = None
+    if args.no_part2:
+        kw["part2"] = None
     try:
         cfg = ExperimentConfig.quick_config(**kw) if args.quick else ExperimentConfig(**kw)
     except ValueError as exc:

@@ -66,6 +66,28 @@ class SpeedConfig:
 
 
 @dataclass(frozen=True)
+class Part2Config:
+    """The executable-grasp scenarios (fewer seeds than Table 3: each plan does more).
+
+    ``table``: each object resting on a table (a support plane under its lowest point)
+    against free space, one grasp per plan; ``candidates``: ``max_grasps`` ranked candidates
+    on the table against one grasp; ``simulation``: the MuJoCo check of the best grasp of
+    APSO, the simple PSO and the pyswarms peers in free space (when
+    :mod:`grasp_apso.simulation` and mujoco can be imported).
+    """
+
+    seeds: int = 5
+    max_grasps: int = 5
+    table: bool = True
+    candidates: bool = True
+    simulation: bool = True
+
+    @classmethod
+    def quick(cls) -> "Part2Config":
+        return cls(seeds=1, max_grasps=3)
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     seeds: int = 20
     objects: tuple[str, ...] = builtin_objects.BUILTIN_OBJECTS
@@ -75,6 +97,7 @@ class ExperimentConfig:
     equal_budget: bool = True
     peers: bool = True
     speed: SpeedConfig | None = field(default_factory=SpeedConfig)
+    part2: Part2Config | None = field(default_factory=Part2Config)
     quick: bool = False
     dpi: int = 100
     command: str = "python -m grasp_apso.experiment"
@@ -82,7 +105,7 @@ class ExperimentConfig:
     @classmethod
     def quick_config(cls, **kw: Any) -> "ExperimentConfig":
         base = dict(seeds=2, objects=("sphere", "cube"), particles=20, iterations=10, snapshots=(2, 5, 10),
-                    speed=SpeedConfig.quick(), quick=True, dpi=70)
+                    speed=SpeedConfig.quick(), part2=Part2Config.quick(), quick=True, dpi=70)
         base.update(kw)
         return cls(**base)
 

@@ -13,6 +13,7 @@ from .analysis import evaluate_claims, find_anomalies, summarise
 from .config import ExperimentConfig
 from .figures import plot_convergence_panels, plot_evaluation_panels, plot_speed, table3_figures
 from .machine import _machine
+from .part2 import run_part2
 from .progress import _log
 from .report import _notes, _targets, write_report
 from .results_json import _compact_json
@@ -41,13 +42,14 @@ def run_experiment(cfg: ExperimentConfig, out: str) -> dict[str, Any]:
         speed = run_speed(cfg.speed, hand, per_object={n: runs[n] for n in cfg.objects}, objects_=cfg.objects)
         pictures["speed"] = os.path.basename(plot_speed(speed, os.path.join(out, "speed.png"), dpi=cfg.dpi))
     claims["targets"] = _targets(speed, claims)
+    part2 = run_part2(cfg, hand, runs, peers)
     wall = time.perf_counter() - t_start
     data = {
         "meta": {"command": cfg.command, "config": asdict(cfg), "machine": machine, "wall_time_s": wall,
                  "valid_definition": "n_contacts >= 3 and result.valid and result.fcl.legal and joint limits",
                  "spread": "q1/q3 = 25th/75th percentiles (numpy linear interpolation)"},
         "summary": summary, "claims": claims, "pyswarms": peers, "determinism": determinism,
-        "pictures": pictures, "speed": speed, "runs": runs,
+        "pictures": pictures, "speed": speed, "runs": runs, "part2": part2,
     }
     data["anomalies"] = find_anomalies(runs)
     if not all(d["prefix_identical"] for d in determinism):

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from .config import ALGORITHM_LABELS, PYSWARMS_BOUNDARY, PYSWARMS_LOCAL, PYSWARMS_OPTIONS, ExperimentConfig
+from .report_part2 import part2_sections
 
 
 def _fmt(x: float | None, digits: int = 3) -> str:
@@ -245,6 +246,9 @@ def write_report(cfg: ExperimentConfig, data: dict[str, Any], path: str) -> str:
             L += [f"Targets: 0.3 s per plan (np = 60, nit = 50, prepared geometry): APSO meets it on "
                   f"{tgt['plan_0_3_s']}; 1 s including the preparation of a ~10,000-triangle mesh: "
                   f"{tgt['prep_plus_plan_10k']}.", ""]
+
+    # Executable grasps: table, candidates, simulation
+    L += part2_sections(cfg, data)
 
     # Observations
     L += ["## Observations", ""]

@@ -32,7 +32,8 @@ def run_main(cfg: ExperimentConfig, hand) -> dict[str, dict[str, list[dict[str, 
         runs[name] = {"apso": [], "pso": []}
         for algorithm in ("apso", "pso"):
             t0 = time.perf_counter()
-            options = PlanOptions(algorithm=algorithm, particles=cfg.particles, iterations=cfg.iterations)
+            options = PlanOptions(algorithm=algorithm, particles=cfg.particles, iterations=cfg.iterations,
+                                  max_grasps=1)  # the paper's setting: one grasp per plan
             for seed in range(cfg.seeds):
                 runs[name][algorithm].append(_plan_record(obj, options, seed, hand)[1])
             fits = [r["fitness"] for r in runs[name][algorithm]]
@@ -43,7 +44,7 @@ def run_main(cfg: ExperimentConfig, hand) -> dict[str, dict[str, list[dict[str, 
             runs[name]["pso_equal_budget"] = []
             for seed, apso in enumerate(runs[name]["apso"]):
                 options = PlanOptions(algorithm="pso", particles=cfg.particles, iterations=10000,
-                                      max_evaluations=apso["evaluations"])
+                                      max_evaluations=apso["evaluations"], max_grasps=1)
                 rec = _plan_record(obj, options, seed, hand)[1]
                 rec["budget"] = apso["evaluations"]
                 runs[name]["pso_equal_budget"].append(rec)
@@ -63,6 +64,40 @@ def pyswarms_status() -> tuple[bool, str]:
     return True, str(getattr(pyswarms, "__version__", "?"))
 
 
+#: The pyswarms optimisers compared (keys of ``results.json``).
+PYSWARMS_KEYS = ("pyswarms_global", "pyswarms_local")
+
+
+def pyswarms_once(obj, key: str, particles: int, iterations: int, seed: int, hand,
+                  options: PlanOptions | None = None) -> tuple[GraspResult, dict[str, Any]]:
+    """One pyswarms run (``key`` in :data:`PYSWARMS_KEYS`) on the planner's fitness, its final
+    particle verified by ``Objective.result``; returns the result and its record."""
+    import logging
+
+    from pyswarms.single import GlobalBestPSO, LocalBestPSO
+
+    logging.getLogger("pyswarms").setLevel(logging.WARNING)
+    cls, extra = {"pyswarms_global": (GlobalBestPSO, {}), "pyswarms_local": (LocalBestPSO, PYSWARMS_LOCAL)}[key]
+    objective = Objective(obj, options or PlanOptions(particles=particles), hand=hand)
+    np.random.seed(seed)  # pyswarms draws from numpy's global state
+    start = time.perf_counter()
+    optimizer = cls(n_particles=particles, dimensions=len(objective.lower), options={**PYSWARMS_OPTIONS, **extra},
+                    bounds=(np.asarray(objective.lower), np.asarray(objective.upper)), bh_strategy=PYSWARMS_BOUNDARY)
+    cost, pos = optimizer.optimize(lambda x: -objective(x), iters=iterations, verbose=False)
+    evaluations = objective.evaluations
+    result = objective.result(pos, algorithm=key)
+    wall = time.perf_counter() - start
+    rec = record_of(result, seed, hand, wall)
+    rec["planning_time"] = wall
+    rec["evaluations"] = int(evaluations)
+    rec["iterations_run"] = iterations
+    rec["optimizer_best"] = _finite(-float(cost))
+    best = np.maximum.accumulate(-np.asarray(optimizer.cost_history, float))
+    rec["best_history"] = [_round(v) for v in best]
+    rec["evaluations_history"] = [int(particles * (i + 1)) for i in range(len(best))]
+    return result, rec
+
+
 def run_pyswarms(cfg: ExperimentConfig, runs: dict, hand) -> dict[str, Any]:
     """pyswarms GlobalBestPSO / LocalBestPSO on ``planner.Objective`` with APSO's median budget."""
     ok, version = pyswarms_status()
@@ -72,41 +107,14 @@ def run_pyswarms(cfg: ExperimentConfig, runs: dict, hand) -> dict[str, Any]:
     if not ok:
         _log(f"pyswarms blocked: {version}")
         return info
-    import logging
-
-    from pyswarms.single import GlobalBestPSO, LocalBestPSO
-
-    logging.getLogger("pyswarms").setLevel(logging.WARNING)
     for name in cfg.objects:
         obj = builtin_objects.builtin(name)
         budget = _stats([r["evaluations"] for r in runs[name]["apso"]])["median"]
         iters = max(1, int(round(budget / cfg.particles)))
         info["iterations"][name] = iters
-        for key, cls, extra in (("pyswarms_global", GlobalBestPSO, {}),
-                                ("pyswarms_local", LocalBestPSO, PYSWARMS_LOCAL)):
+        for key in PYSWARMS_KEYS:
             t0 = time.perf_counter()
-            records = []
-            for seed in range(cfg.seeds):
-                objective = Objective(obj, PlanOptions(particles=cfg.particles), hand=hand)
-                np.random.seed(seed)  # pyswarms draws from numpy's global state
-                start = time.perf_counter()
-                optimizer = cls(n_particles=cfg.particles, dimensions=len(objective.lower),
-                                options={**PYSWARMS_OPTIONS, **extra},
-                                bounds=(np.asarray(objective.lower), np.asarray(objective.upper)),
-                                bh_strategy=PYSWARMS_BOUNDARY)
-                cost, pos = optimizer.optimize(lambda x: -objective(x), iters=iters, verbose=False)
-                evaluations = objective.evaluations
-                result = objective.result(pos, algorithm=key)
-                wall = time.perf_counter() - start
-                rec = record_of(result, seed, hand, wall)
-                rec["planning_time"] = wall
-                rec["evaluations"] = int(evaluations)
-                rec["iterations_run"] = iters
-                rec["optimizer_best"] = _finite(-float(cost))
-                best = np.maximum.accumulate(-np.asarray(optimizer.cost_history, float))
-                rec["best_history"] = [_round(v) for v in best]
-                rec["evaluations_history"] = [int(cfg.particles * (i + 1)) for i in range(len(best))]
-                records.append(rec)
+            records = [pyswarms_once(obj, key, cfg.particles, iters, seed, hand)[1] for seed in range(cfg.seeds)]
             runs[name][key] = records
             _log(f"{name:6s} {key}: {iters} iterations x {cfg.particles} particles, {time.perf_counter() - t0:.1f} s, "
                  f"median fitness {_stats([r['fitness'] for r in records])['median']:.3f}")

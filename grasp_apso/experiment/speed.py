@@ -64,8 +64,8 @@ def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
                 times = [r["planning_time"] for r in recs]
                 evals = [r["evaluations"] for r in recs]
             else:
-                timed(obj, PlanOptions(iterations=1), 0)  # preparation outside the timing
-                rs = [timed(obj, PlanOptions(algorithm=alg), s) for s in range(speed.per_object_runs)]
+                timed(obj, PlanOptions(iterations=1, max_grasps=1), 0)  # preparation outside the timing
+                rs = [timed(obj, PlanOptions(algorithm=alg, max_grasps=1), s) for s in range(speed.per_object_runs)]
                 times = [r.planning_time for r in rs]
                 evals = [r.evaluations for r in rs]
             result["per_object"][name][alg] = {
@@ -76,11 +76,11 @@ def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
             f"PSO {result['per_object'][name]['pso']['planning_time']['median']:.3f} s (median)")
 
     obj = builtin_objects.builtin(speed.sweep_object)
-    timed(obj, PlanOptions(iterations=1), 0)
+    timed(obj, PlanOptions(iterations=1, max_grasps=1), 0)
     for key, values in (("particles", speed.particles), ("iterations", speed.iterations)):
         for v in values:
             for alg in ("apso", "pso"):
-                options = PlanOptions(algorithm=alg, **{key: int(v)})
+                options = PlanOptions(algorithm=alg, max_grasps=1, **{key: int(v)})
                 rs = [timed(obj, options, s) for s in range(speed.repeats)]
                 times = [r.planning_time for r in rs]
                 evals = [r.evaluations for r in rs]
@@ -97,7 +97,7 @@ def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,
         obj = objects.from_arrays(np.asarray(mesh.vertices), np.asarray(mesh.faces), name=f"{kind}{size}")
         construct = time.perf_counter() - t0
         _clear_caches()
-        rs = [timed(obj, PlanOptions(), s) for s in range(max(1, speed.mesh_repeats))]
+        rs = [timed(obj, PlanOptions(max_grasps=1), s) for s in range(max(1, speed.mesh_repeats))]
         warm = [r.planning_time for r in rs[1:]] or [rs[0].planning_time]
         entry = {
             "label": label, "triangles": int(len(obj.mesh.faces)), "vertices": int(len(obj.mesh.vertices)),

@@ -1,0 +1,163 @@
+"""What ``grasp_apso_plan`` reads from its command line: the object, the algorithms and the
+scene (``--table``, ``--obstacle``), and how library errors are named after the options.
+
+Obstacle format (planning frame = the object frame on the command line; metres):
+
+==========================  ===================================================================
+``box:x,y,z,sx,sy,sz``      a box centred at (x, y, z), full sizes sx, sy, sz along the axes
+``sphere:x,y,z,r``          a sphere centred at (x, y, z), radius r
+``cylinder:x,y,z,h,r``      a cylinder centred at (x, y, z), axis along z, height h, radius r
+==========================  ===================================================================
+
+The same primitives and conventions as the ROS request (``shape_msgs/SolidPrimitive``:
+BOX dimensions are full sizes, CYLINDER ``[height, radius]``); obstacles are axis-aligned
+here (the Python API and the node take any pose).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+
+import numpy as np
+
+from ..errors import GraspApsoError, UsageError
+from ..model import builtin as builtin_objects
+from ..model import mesh_files, objects
+from ..model.scene import BOX, CYLINDER, SPHERE, Scene
+from ..search.planner import ALGORITHMS
+
+__all__ = [
+    "OBSTACLE_FORMATS", "whole_number", "finite_number", "cli_message", "load_object",
+    "algorithms", "safe_name", "parse_obstacle", "build_scene",
+]
+
+#: ``kind -> (primitive type, the numbers after the centre, help text)``.
+OBSTACLE_FORMATS: dict[str, tuple[int, tuple[str, ...], str]] = {
+    "box": (BOX, ("sx", "sy", "sz"), "box:x,y,z,sx,sy,sz (centre, full sizes)"),
+    "sphere": (SPHERE, ("r",), "sphere:x,y,z,r (centre, radius)"),
+    "cylinder": (CYLINDER, ("h", "r"), "cylinder:x,y,z,h,r (centre, height along z, radius)"),
+}
+
+#: Request / option field -> command-line option, for messages of the library.
+_OPTION_OF_FIELD = {
+    "mesh_uri": "--mesh", "mesh": "--mesh", "object_name": "--object", "particles": "--particles",
+    "iterations": "--iterations", "friction": "--friction", "algorithm": "--algorithm",
+    "clearance": "--clearance", "approach_distance": "--approach-distance", "max_grasps": "--grasps",
+    "simulate": "--simulate", "support_planes": "--table", "obstacle_poses": "--obstacle",
+    "obstacles": "--obstacle",
+}
+_INDEXED = re.compile(r"^(support_planes|obstacles|obstacle_poses)\[(\d+)\]$")
+
+
+def whole_number(text: str) -> int:
+    """argparse type: an integer (its range is checked by the planner's options)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def finite_number(text: str) -> float:
+    """argparse type: a finite float."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def cli_message(exc: BaseException) -> str:
+    """The first line of an error, its leading request field renamed to the option
+    (``clearance: ...`` -> ``--clearance: ...``, ``obstacles[1]: ...`` -> ``--obstacle 2: ...``)."""
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    head, sep, rest = text.partition(":")
+    if not sep:
+        return text
+    head = head.strip()
+    indexed = _INDEXED.match(head)
+    if indexed:
+        option = _OPTION_OF_FIELD[indexed.group(1)]
+        label = option if option == "--table" else f"{option} {int(indexed.group(2)) + 1}"
+        return label + ":" + rest
+    if head in _OPTION_OF_FIELD:
+        return _OPTION_OF_FIELD[head] + ":" + rest
+    return text
+
+
+def load_object(args: argparse.Namespace):
+    """The object of ``--object`` / ``--mesh`` (``--mesh-scale``) and a word on its source."""
+    if args.mesh is not None:
+        if args.mesh_scale <= 0:
+            raise UsageError(f"--mesh-scale: expected a positive number, got {args.mesh_scale:g}")
+        obj = mesh_files.from_file(args.mesh)
+        if args.mesh_scale != 1.0:
+            obj = objects.from_arrays(np.asarray(obj.mesh.vertices) * args.mesh_scale,
+                                      np.asarray(obj.mesh.faces), name=obj.name)
+        return obj, "mesh file " + args.mesh
+    name = args.object if args.object is not None else "sphere"
+    return builtin_objects.builtin(name.strip().lower()), "built-in"
+
+
+def algorithms(text: str) -> tuple[str, ...]:
+    """``--algorithm``: apso, pso or both."""
+    text = text.strip().lower()
+    if text == "both":
+        return ALGORITHMS
+    if text in ALGORITHMS:
+        return (text,)
+    raise UsageError(f"--algorithm: unknown '{text}' (expected apso, pso or both)")
+
+
+def safe_name(name: str) -> str:
+    """A file-name-safe stem of an object name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "object"
+
+
+def parse_obstacle(text: str) -> tuple[int, tuple[float, ...], np.ndarray]:
+    """One ``--obstacle`` value -> (primitive type, dimensions, 4x4 pose of its centre).
+
+    Only the syntax is checked here; the dimensions' values (positive, finite) are checked
+    by :meth:`Scene.from_primitives`, whose message then names the obstacle.
+    """
+    kind, sep, numbers = text.partition(":")
+    kind = kind.strip().lower()
+    if not sep or kind not in OBSTACLE_FORMATS:
+        raise UsageError(f"--obstacle: '{text}': expected one of "
+                         + ", ".join(f[2] for f in OBSTACLE_FORMATS.values()) + " (metres)")
+    primitive, names, form = OBSTACLE_FORMATS[kind]
+    try:
+        values = [float(v) for v in numbers.split(",")]
+    except ValueError:
+        raise UsageError(f"--obstacle: '{text}': expected numbers, {form}") from None
+    if len(values) != 3 + len(names):
+        raise UsageError(f"--obstacle: '{text}': a {kind} takes {3 + len(names)} numbers, {form}; "
+                         f"got {len(values)}")
+    if not all(math.isfinite(v) for v in values):
+        raise UsageError(f"--obstacle: '{text}': numbers must be finite")
+    pose = np.eye(4)
+    pose[:3, 3] = values[:3]
+    return primitive, tuple(values[3:]), pose
+
+
+def build_scene(obj, table: bool, obstacles: list[str] | None) -> Scene | None:
+    """The scene of ``--table`` and ``--obstacle`` in the planning frame (= the object
+    frame here), or None when neither is given.
+
+    ``--table``: a support plane, normal +z, through the object's lowest point.
+    """
+    obstacles = list(obstacles or [])
+    if not table and not obstacles:
+        return None
+    parsed = [parse_obstacle(t) for t in obstacles]
+    planes = []
+    if table:
+        planes = list(Scene.table_under(np.asarray(obj.mesh.vertices, float)).planes)
+    try:
+        return Scene.from_primitives(planes=planes, obstacles=[(k, d) for k, d, _ in parsed],
+                                     obstacle_poses=[p for _, _, p in parsed])
+    except GraspApsoError as exc:
+        raise UsageError(cli_message(exc)) from None
