@@ -46,6 +46,7 @@ setup(
             'planner_node = grasp_apso.ros.node:main',
             'grasp_apso_plan = grasp_apso.tools.cli:main',
             'grasp_apso_urdf = grasp_apso.tools.urdf_cli:main',
+            'grasp_apso_batch = grasp_apso.tools.batch_cli:main',
         ],
     },
 )

@@ -185,6 +185,9 @@ TUNABLES: tuple[Tunable, ...] = (
     _t("workers", int, 1, "Plans that run at the same time, each on a thread of its own (the "
        "kernels release the GIL); more requests wait in the queue.", 1, 16, scope="node",
        read_only=True),
+    _t("grasp_database", str, "", "Path of a grasp database written by grasp_apso_batch: requests "
+       "for a stored object and hand are answered from it when a stored grasp survives the "
+       "request's scene; empty = none.", scope="node", read_only=True),
     _t("plan_timeout", float, 60.0, "Seconds a request may spend in the worker (reading, validation, "
        "preparation, planning); it is answered 'timed out' naming the stage. 0 = no limit.",
        0.0, 86400.0, unit="s", scope="node"),

@@ -283,7 +283,8 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
     Parameters
     ----------
     msg : PlanGrasp.Response or PlanGrasp.Result
-    result : grasp_apso.search.result.GraspResult
+    result : grasp_apso.search.result.GraspResult or grasp_apso.ros.database_answers.StoredGrasps
+        A plan, or grasps answered from the grasp database (``source`` "database").
     header : std_msgs.msg.Header
         The request's ``object_pose.header`` (frame and stamp).
     planning_time : float, optional, s

@@ -5,7 +5,9 @@ action ``~/plan_grasp`` (``grasp_apso_interfaces``; the action streams progress 
 feedback and is cancellable), topic ``~/progress`` (one ``GraspProgress`` per iteration
 of every plan), topic ``~/grasp_markers`` (``MarkerArray``, transient local: the last
 grasp, its candidates' approaches, the pre-grasp hand and the scene) and one parameter
-per node tunable (:mod:`grasp_apso.ros.parameters`, ``config/grasp_apso.yaml``).
+per node tunable (:mod:`grasp_apso.ros.parameters`, ``config/grasp_apso.yaml``). With
+``grasp_database`` set, stored objects are answered from that database
+(``grasp_source`` "database"; :mod:`.database_answers`).
 
 This module builds the node and holds its callbacks (parameters: :mod:`.parameters`,
 parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). The callbacks are coroutines in a ``ReentrantCallbackGroup``: they check
@@ -67,7 +69,8 @@ class GraspPlannerNode(Node):
         super().__init__(node_name, **kwargs)
         self.parameters = NodeParameters(self)  # raises for an invalid start-up value
         settings = self.parameters.settings
-        self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"])
+        self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
+                             database=self.parameters.database)
         self._goals: dict[bytes, Job] = {}
         self._absent: dict[str, int] = {"service": 0, "action": 0}
         group = ReentrantCallbackGroup()
@@ -85,8 +88,11 @@ class GraspPlannerNode(Node):
         name = self.resolve_service_name("~/plan_grasp")
         self._client_endpoints = {"service": name, "action": f"{name}/_action/send_goal"}
         self._watch = self.create_timer(1.0, self._watch_clients, callback_group=MutuallyExclusiveCallbackGroup())
+        db = self.parameters.database
+        stored = (f", grasp database {db.path} ({len(db)} objects, {db.rows} grasps, read in "
+                  f"{db.load_seconds:.2f} s)" if db is not None else "")
         self.get_logger().info(f"ready: service and action {name}, progress on {self._progress_pub.topic_name}, "
-                               f"markers on {self._marker_pub.topic_name}, {self.worker.workers} worker(s)")
+                               f"markers on {self._marker_pub.topic_name}, {self.worker.workers} worker(s){stored}")
 
     # ------------------------------------------------------------------ worker hooks
     def log(self, level: str, text: str) -> None:
@@ -199,7 +205,7 @@ class GraspPlannerNode(Node):
         msg.planning_time = float(outcome.worker_time)
         if outcome.result is not None:
             try:
-                fill_result(msg, outcome.result, header, planning_time=outcome.worker_time, source="planned")
+                fill_result(msg, outcome.result, header, planning_time=outcome.worker_time, source=outcome.source)
             except Exception:  # noqa: BLE001 -- request boundary
                 self.get_logger().error(f"request {request_id}: cannot convert the result\n{traceback.format_exc()}")
                 msg.success = False

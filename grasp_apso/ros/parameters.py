@@ -3,10 +3,11 @@
 - :func:`descriptor`: a ``ParameterDescriptor`` per :class:`~grasp_apso.tunables.Tunable`
   (type, description, range, constraints; ``read_only`` for the security and resource
   limits: ``allowed_mesh_dir``, ``max_mesh_triangles``, ``max_mesh_bytes``,
-  ``hand_description``, ``queue_length``, ``workers``).
+  ``hand_description``, ``queue_length``, ``workers``, ``grasp_database``).
 - :class:`NodeParameters`: declares them on a node, checks the start-up values with
   :meth:`Tunable.check <grasp_apso.tunables.Tunable.check>` (a bad value stops the node
-  with a message naming the parameter), loads the hand description once, and keeps a
+  with a message naming the parameter), loads the hand description and opens the grasp
+  database (:mod:`.database_answers`) once, and keeps a
   :class:`Settings` snapshot that requests read. Changes at run time go through a
   pre-set callback (an integer is accepted for a double), an on-set callback (read-only
   parameters refused, every value checked, the options checked together) and a
@@ -32,6 +33,7 @@ from ..errors import GraspApsoError, HandDescriptionError, InputError
 from ..model.hand import HandModel, load_hand
 from ..search.options import PlanOptions
 from ..tunables import Tunable, ros_tunables
+from .database_answers import open_database
 
 __all__ = ["PARAMETERS", "PARAMETER_NAMES", "READ_ONLY", "NodeParameters", "Settings", "descriptor"]
 
@@ -95,9 +97,14 @@ class NodeParameters:
 
     Raises
     ------
-    InputError, HandDescriptionError
+    InputError, HandDescriptionError, DatabaseError
         A start-up value that is invalid (the message names the parameter; a hand file's
         content is never quoted).
+
+    Attributes
+    ----------
+    database : GraspDatabase or None
+        The grasp database opened at start-up (parameter ``grasp_database``, read-only).
     """
 
     def __init__(self, node: Node) -> None:
@@ -118,6 +125,7 @@ class NodeParameters:
         except ValueError as exc:
             raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
         self._hand = hand
+        self.database = open_database(str(values["grasp_database"]), hand)
         self._settings = Settings(MappingProxyType(dict(values)), _options(values), hand)
         node.add_pre_set_parameters_callback(self._coerce)
         node.add_on_set_parameters_callback(self._check)

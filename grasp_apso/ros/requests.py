@@ -74,6 +74,7 @@ class Job:
     cancelled: bool = False
     timed_out: bool = False
     answered: bool = False
+    database_note: str = ""          # why the grasp database did not answer (for the message)
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
 

@@ -6,7 +6,10 @@ Admission: at most ``workers`` jobs run and ``queue_length`` wait; another reque
 answered "busy" at once (:meth:`Worker.reserve`). A job goes through the stages
 ``queued`` -> ``reading`` (a mesh file) -> ``validation`` (mesh checks, placement in the
 scene) -> ``preparation`` (the planner's signed-distance grid, shape class) ->
-``planning`` (the swarm and the verification).
+``planning`` (the swarm and the verification). With a grasp database (parameter
+``grasp_database``), a stored object is answered after ``validation`` from the stored
+grasps that survive the request's scene (stage ``database lookup``, milliseconds); it is
+planned only when none does (:mod:`.database_answers`).
 
 Time bound: ``plan_timeout`` counts from the moment a thread takes the job. When it runs
 out the swarm stops at its next iteration and the reply carries the best grasp so far;
@@ -41,6 +44,7 @@ from ..errors import GraspApsoError, ObjectError
 from ..model import builtin as builtin_objects
 from ..model import mesh_files, objects
 from ..search.planner import GraspResult, plan, warm_up
+from . import database_answers
 from .requests import PACKED, Job, packed_message
 
 __all__ = ["Outcome", "Worker", "OBJECT_CACHE_ENTRIES", "OBJECT_CACHE_BYTES", "TIMEOUT_GRACE"]
@@ -56,13 +60,16 @@ _PLAN_TAKES_SCENE = "scene" in inspect.signature(plan).parameters
 
 @dataclass
 class Outcome:
-    """What the worker answers for one request."""
+    """What the worker answers for one request (``source``: the reply's ``grasp_source``,
+    "planned" or "database"; a database answer's ``result`` is a
+    :class:`~.database_answers.StoredGrasps`)."""
 
     success: bool
     message: str
-    result: GraspResult | None = None
+    result: GraspResult | database_answers.StoredGrasps | None = None
     cancelled: bool = False
     worker_time: float = 0.0
+    source: str = "planned"
 
 
 class Hooks(Protocol):
@@ -89,10 +96,12 @@ def _nothing() -> None:
 
 
 class Worker:
-    """Runs jobs on ``workers`` threads with ``queue_length`` waiting places."""
+    """Runs jobs on ``workers`` threads with ``queue_length`` waiting places; answers stored
+    objects from ``database`` (a :class:`~grasp_apso.database.lookup.GraspDatabase`) when given."""
 
-    def __init__(self, hooks: Hooks, workers: int = 1, queue_length: int = 4) -> None:
+    def __init__(self, hooks: Hooks, workers: int = 1, queue_length: int = 4, database: Any = None) -> None:
         self._hooks = hooks
+        self.database = database
         self.workers = int(workers)
         self.queue_length = int(queue_length)
         self._lock = threading.Lock()
@@ -208,7 +217,7 @@ class Worker:
         except GraspApsoError as exc:
             detail = getattr(exc, "detail", "")
             self._hooks.log("info", f"request {job.request_id}: {exc}{f' ({detail})' if detail else ''}")
-            outcome = Outcome(False, str(exc))
+            outcome = Outcome(False, f"{exc} ({job.database_note})" if job.database_note else str(exc))
         except Exception:  # noqa: BLE001 -- request boundary: a worker thread never dies
             self._hooks.log("error", f"request {job.request_id}: internal error\n{traceback.format_exc()}")
             outcome = Outcome(False, f"internal error while {job.stage} (request {job.request_id}; "
@@ -300,6 +309,16 @@ class Worker:
             job.stage = "validation"
             rot, trans = job.pose[:3, :3], job.pose[:3, 3]
             job.scene.check_object_placement(np.asarray(obj.mesh.vertices) @ rot.T + trans, "object_pose")
+        note = ""
+        if self.database is not None:
+            job.stage = "database lookup"
+            stored, note = database_answers.lookup(
+                self.database, obj, job.hand, job.pose, job.scene, opts, preparation_time=time.perf_counter() - t0,
+                obj_bvh=database_answers.object_bvh(obj) if job.scene is not None else None)
+            job.database_note = note
+            if stored is not None:
+                self._hooks.on_result(job, stored)
+                return Outcome(True, stored.message, stored, source="database")
         job.stage = "preparation"
         extra = {"scene": job.scene} if _PLAN_TAKES_SCENE else {}
         result = plan(obj, pose=job.pose, options=opts, rng=np.random.default_rng(job.seed), hand=job.hand,
@@ -324,10 +343,10 @@ class Worker:
                 why.append("the collision check failed")
             return Outcome(False, f"no valid grasp found ({', '.join(why) or 'illegal configuration'}): "
                                   f"{summary}", result)
-        note = f"; {result.candidates_message}" if result.candidates_message else ""
-        if n < opts.max_grasps and not note:
-            note = f"; {n} of the {opts.max_grasps} requested distinct candidates found"
-        return Outcome(True, f"grasp found: {summary}{note}", result)
+        tail = f"; {result.candidates_message}" if result.candidates_message else ""
+        if n < opts.max_grasps and not tail:
+            tail = f"; {n} of the {opts.max_grasps} requested distinct candidates found"
+        return Outcome(True, f"grasp found: {summary}{tail}{'; ' + note if note else ''}", result)
 
     def _warm_up(self) -> None:
         """Load the compiled kernels (never raises: a request would then report it)."""

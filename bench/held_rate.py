@@ -1,0 +1,277 @@
+#!/usr/bin/env python3
+"""How many planned grasps HOLD in the MuJoCo check, objects resting on a table (issue 13.6).
+
+Rerunnable, not a test::
+
+    .venv/bin/python bench/held_rate.py --quick                # particles 30, iterations 20, 1 seed
+    .venv/bin/python bench/held_rate.py --seeds 3 --poses 2    # default swarm, seeds 0..2, 2 poses
+    .venv/bin/python bench/held_rate.py --quick --algorithms apso --objects cube mug
+
+For each object (the four built-ins and every mesh of ``grasp_apso/data/meshes``), each
+pose (identity, then seeded random rotations about z), each algorithm (APSO, the simple
+PSO) and each seed 0..N-1: the object rests on a table (``Scene.table_under`` its lowest
+point), :func:`~grasp_apso.search.planner.plan` returns its ranked candidates, and every
+candidate is checked with :func:`~grasp_apso.simulation.simulate_grasp` (planes = the
+table; pre-grasp and grasp = the candidate's first 15 joints; its wrist pose).
+
+Per candidate it also records what may tell a failure apart: the contacts (fingers, thumb
+present), their normal uncertainty (:func:`~grasp_apso.quality.robustness.normal_uncertainty`,
+large at an edge or a corner), their height below the object's top (a rim) and above the
+table, epsilon and the robust epsilon (:func:`~grasp_apso.quality.robustness.robust_epsilon`).
+
+Prints a table per object (best held / candidates held / median shift mm and turn deg /
+the directions that fail), the totals per algorithm, the failed grasps with their features,
+and "re-ranked" held rates: the best grasp chosen among the force-closure candidates by
+the robust epsilon or the margin instead of the planner's rank (no extra simulation: every
+candidate is simulated). Writes ``bench/results/held_rate.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import numpy as np  # noqa: E402
+
+MESH_DIR = REPO / "grasp_apso" / "data" / "meshes"
+BUILTINS = ("sphere", "cube", "barrel", "fish")
+#: Rules for choosing the best grasp among a plan's candidates, compared offline (every
+#: candidate is simulated): "max <key>" sorts the force-closure candidates by that key;
+#: "first robust" keeps the planner's order but skips candidates whose robust epsilon is
+#: 0; "first margin>=0.25" skips those keeping under a quarter of their epsilon.
+RERANK_KEYS = ("robust_epsilon", "margin", "epsilon", "first_robust", "first_margin")
+
+
+def mesh_names() -> list[str]:
+    entries = json.loads((MESH_DIR / "manifest.json").read_text())
+    return [Path(e["file"]).stem for e in entries]
+
+
+def load(name: str):
+    from grasp_apso.model.builtin import builtin
+    from grasp_apso.model.mesh_files import from_file
+    return builtin(name) if name in BUILTINS else from_file(MESH_DIR / f"{name}.stl")
+
+
+def pose_list(count: int, seed: int = 13) -> list[np.ndarray]:
+    """Identity, then ``count - 1`` seeded random rotations about z (object upright)."""
+    rng = np.random.default_rng(seed)
+    out = [np.eye(4)]
+    for angle in rng.uniform(0.0, 2.0 * math.pi, size=count - 1):
+        m = np.eye(4)
+        c, s = math.cos(angle), math.sin(angle)
+        m[:2, :2] = [[c, -s], [s, c]]
+        out.append(m)
+    return out
+
+
+def run_case(task: tuple) -> dict:
+    """Plan one (object, pose, algorithm, seed) on a table and simulate every candidate."""
+    from grasp_apso.model.hand import load_hand
+    from grasp_apso.model.scene import Scene
+    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
+    from grasp_apso.search.options import PlanOptions
+    from grasp_apso.search.planner import plan
+    from grasp_apso.simulation import simulate_grasp
+
+    name, pose_index, pose, algorithm, seed, swarm = task
+    obj, hand = load(name), load_hand()
+    rot = pose[:3, :3]
+    vertices = np.asarray(obj.mesh.vertices) @ rot.T + pose[:3, 3]
+    scene = Scene.table_under(vertices)
+    top, low = float(vertices[:, 2].max()), float(vertices[:, 2].min())
+    options = PlanOptions(algorithm=algorithm, **swarm)
+    row = {"object": name, "pose": pose_index, "algorithm": algorithm, "seed": seed, "candidates": []}
+    t0 = time.perf_counter()
+    try:
+        result = plan(obj, pose, options, np.random.default_rng(seed), scene=scene)
+    except Exception as exc:  # a failed plan is a recorded outcome, not a crash of the bench
+        row.update(error=f"{type(exc).__name__}: {exc}", plan_s=time.perf_counter() - t0)
+        return row
+    row["plan_s"] = time.perf_counter() - t0
+    for cand in result.candidates:
+        pts = np.array([c.position for c in cand.contacts]).reshape(-1, 3)
+        nrm = np.array([c.normal for c in cand.contacts]).reshape(-1, 3)
+        pts_obj, nrm_obj = (pts - pose[:3, 3]) @ rot, nrm @ rot  # planning -> object frame
+        unc = normal_uncertainty(obj, pts_obj) if len(pts) else np.zeros(0)
+        nominal = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, np.zeros(len(pts)),
+                                 options.friction_edges) if len(pts) >= 2 else 0.0
+        robust = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, unc,
+                                options.friction_edges) if len(pts) >= 2 else 0.0
+        sim = simulate_grasp(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions[:15],
+                             cand.joint_positions[:15], planes=scene.planes)
+        row["candidates"].append({
+            "rank": cand.rank, "epsilon": float(cand.epsilon), "force_closure": bool(cand.force_closure),
+            "nominal_epsilon": nominal, "robust_epsilon": robust,
+            "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
+            "fingers": [c.finger for c in cand.contacts], "thumb": any(c.finger == "thumb" for c in cand.contacts),
+            "uncertainty_deg": np.degrees(unc).round(1).tolist(),
+            "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
+            "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),
+            "held": bool(sim.held), "shift_mm": 1000 * sim.max_shift, "turn_deg": math.degrees(sim.max_turn),
+            "failed": [d for d, _, _, ok in sim.per_direction if not ok], "sim_s": sim.sim_time,
+        })
+    return row
+
+
+def best_by(cands: list[dict], key: str) -> dict | None:
+    """The best grasp by ``key`` among the force-closure candidates (planner rank breaks
+    ties); the planner's best when none is force closure. ``first_robust`` /
+    ``first_margin``: the first candidate in the planner's order with a robust epsilon
+    > 0 / a margin >= 0.25 (the planner's best when none)."""
+    if not cands:
+        return None
+    if key.startswith("first_"):
+        ok = (lambda c: c["robust_epsilon"] > 0.0) if key == "first_robust" else (lambda c: c["margin"] >= 0.25)
+        return next((c for c in cands if ok(c)), cands[0])
+    pool = [c for c in cands if c["force_closure"]] or cands[:1]
+    return max(pool, key=lambda c: (c[key], -c["rank"]))
+
+
+def summarise(rows: list[dict]) -> dict:
+    """Held rates of one group of plans: best, all candidates, and re-ranked bests."""
+    cands = [c for r in rows for c in r["candidates"]]
+    planned = [r for r in rows if r["candidates"]]
+    out = {"plans": len(rows), "plan_errors": sum("error" in r for r in rows),
+           "best_held": sum(r["candidates"][0]["held"] for r in planned),
+           "candidates": len(cands), "candidates_held": sum(c["held"] for c in cands),
+           "median_shift_mm": statistics.median([c["shift_mm"] for c in cands]) if cands else math.nan,
+           "median_turn_deg": statistics.median([c["turn_deg"] for c in cands]) if cands else math.nan,
+           "failed_directions": {}}
+    for c in cands:
+        for d in c["failed"]:
+            out["failed_directions"][d] = out["failed_directions"].get(d, 0) + 1
+    for key in RERANK_KEYS:
+        out[f"best_held_by_{key}"] = sum(best_by(r["candidates"], key)["held"] for r in planned)
+    robust = [c for c in cands if c["robust_epsilon"] > 0.0]
+    out["robust_candidates"], out["robust_candidates_held"] = len(robust), sum(c["held"] for c in robust)
+    return out
+
+
+def _rate(n: int, d: int) -> str:
+    return f"{n:3d}/{d:<3d} {100.0 * n / d:5.1f}%" if d else "   —        "
+
+
+def print_report(rows: list[dict], algorithms: list[str], objects: list[str]) -> dict:
+    summary = {}
+    for alg in algorithms:
+        print(f"\n== {alg.upper()} ==")
+        print(f"{'object':22s} {'best held':>13s} {'cands held':>13s} {'shift mm':>8s} {'turn deg':>8s}  "
+              f"{'by robust':>9s}  failing directions")
+        per_object = {}
+        for name in objects:
+            group = [r for r in rows if r["algorithm"] == alg and r["object"] == name]
+            s = summarise(group)
+            per_object[name] = s
+            fails = " ".join(f"{d}:{n}" for d, n in sorted(s["failed_directions"].items()))
+            err = f" ({s['plan_errors']} plan errors)" if s["plan_errors"] else ""
+            print(f"{name:22s} {_rate(s['best_held'], s['plans'] - s['plan_errors'])} "
+                  f"{_rate(s['candidates_held'], s['candidates'])} {s['median_shift_mm']:8.1f} "
+                  f"{s['median_turn_deg']:8.1f}  {s['best_held_by_robust_epsilon']:4d}/{s['plans'] - s['plan_errors']:<4d}"
+                  f"  {fails}{err}")
+        for label, names in (("built-ins", [n for n in objects if n in BUILTINS]),
+                             ("meshes", [n for n in objects if n not in BUILTINS]), ("all", objects)):
+            group = [r for r in rows if r["algorithm"] == alg and r["object"] in names]
+            if not group:
+                continue
+            s = summarise(group)
+            planned = s["plans"] - s["plan_errors"]
+            print(f"{'TOTAL ' + label:22s} {_rate(s['best_held'], planned)} {_rate(s['candidates_held'], s['candidates'])}")
+            print(f"{'':22s} best re-ranked: " + ", ".join(f"{k} {_rate(s['best_held_by_' + k], planned)}"
+                                                          for k in RERANK_KEYS))
+            print(f"{'':22s} candidates with robust epsilon > 0: "
+                  f"{_rate(s['robust_candidates_held'], s['robust_candidates'])} held")
+            summary[f"{alg}/{label}"] = s
+        summary[f"{alg}/per_object"] = per_object
+    return summary
+
+
+def print_failures(rows: list[dict]) -> None:
+    """One line per dropped candidate, then held vs dropped feature medians."""
+    print("\n== dropped grasps (rank, fingers, uncertainty deg per contact, mm below top, eps, robust eps, "
+          "shift mm / turn deg, failing directions) ==")
+    for r in rows:
+        for c in r["candidates"]:
+            if not c["held"]:
+                print(f"{r['algorithm']:4s} {r['object']:20s} p{r['pose']} s{r['seed']} #{c['rank']} "
+                      f"{'+'.join(f[0].upper() for f in c['fingers']):6s} unc {c['uncertainty_deg']} "
+                      f"top {c['below_top_mm']} eps {c['epsilon']:.3f} rob {c['robust_epsilon']:.3f} "
+                      f"{c['shift_mm']:.0f}/{c['turn_deg']:.0f} {','.join(c['failed'])}")
+    cands = [c for r in rows for c in r["candidates"]]
+    features = {
+        "contacts": lambda c: len(c["fingers"]), "thumb": lambda c: float(c["thumb"]),
+        "max uncertainty deg": lambda c: max(c["uncertainty_deg"] or [0.0]),
+        "contacts > 20 deg": lambda c: sum(u > 20 for u in c["uncertainty_deg"]),
+        "min mm below top": lambda c: min(c["below_top_mm"] or [math.nan]),
+        "epsilon": lambda c: c["epsilon"], "robust epsilon": lambda c: c["robust_epsilon"],
+        "margin": lambda c: c["margin"],
+    }
+    print(f"\n{'feature (median / mean)':24s} {'held':>16s} {'dropped':>16s}")
+    for label, f in features.items():
+        vals = {k: [f(c) for c in cands if c["held"] == k] for k in (True, False)}
+        cells = [f"{statistics.median(v):7.3f} /{statistics.fmean(v):7.3f}" if v else f"{'—':>16s}"
+                 for v in (vals[True], vals[False])]
+        print(f"{label:24s} {cells[0]:>16s} {cells[1]:>16s}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="particles 30, iterations 20, 1 seed")
+    parser.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1 (default 3; --quick: 1)")
+    parser.add_argument("--poses", type=int, default=1, help="identity + N-1 random rotations about z")
+    parser.add_argument("--algorithms", nargs="+", default=["apso", "pso"], choices=["apso", "pso"])
+    parser.add_argument("--objects", nargs="+", default=None, help="default: 4 built-ins + every mesh")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--failures", action="store_true", help="print every dropped grasp")
+    parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "held_rate.json")
+    parser.add_argument("--from-json", type=Path, help="reprint the tables of a saved run, no planning")
+    args = parser.parse_args(argv)
+    if args.from_json:
+        saved = json.loads(args.from_json.read_text())
+        rows = saved["runs"]
+        algs = list(dict.fromkeys(r["algorithm"] for r in rows))
+        print_report(rows, algs, list(dict.fromkeys(r["object"] for r in rows)))
+        if args.failures:
+            print_failures(rows)
+        print(f"(from {args.from_json}: {saved['command']})")
+        return 0
+    objects = args.objects or list(BUILTINS) + mesh_names()
+    seeds = 1 if args.quick else args.seeds
+    swarm = {"particles": 30, "iterations": 20} if args.quick else {}
+    poses = pose_list(args.poses)
+    tasks = [(name, k, pose, alg, seed, swarm) for alg in args.algorithms for name in objects
+             for k, pose in enumerate(poses) for seed in range(seeds)]
+    t0 = time.perf_counter()
+    load0 = os.getloadavg()[0]
+    if args.workers > 1:
+        with ProcessPoolExecutor(args.workers) as pool:
+            rows = list(pool.map(run_case, tasks))
+    else:
+        rows = [run_case(t) for t in tasks]
+    wall = time.perf_counter() - t0
+    summary = print_report(rows, args.algorithms, objects)
+    if args.failures:
+        print_failures(rows)
+    print(f"\n{len(tasks)} plans in {wall:.0f} s ({args.workers} workers, load average {load0:.1f} -> "
+          f"{os.getloadavg()[0]:.1f})")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({
+        "benchmark": "held_rate", "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
+        "swarm": swarm or "default", "seeds": seeds, "poses": [p.tolist() for p in poses],
+        "wall_s": round(wall, 1), "summary": summary, "runs": rows}, indent=1, default=float) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,308 @@
+"""The grasp database on disk: a directory of Parquet part files, written atomically, one
+writer at a time.
+
+Layout::
+
+    DB/
+      grasp_database.json        marker: format name, schema version, creation time
+      grasps/part-*.parquet      one row per grasp (schema.GRASP_SCHEMA)
+      failures/part-*.parquet    one row per failed attempt (schema.FAILURE_SCHEMA)
+      LOCK                       present while a batch writes: JSON {pid, host, started}
+
+Appending is safe: a writer only ever adds new part files, each written to a hidden
+temporary file (``.part-*.tmp``) that is fsync'ed and then renamed into place
+(``os.replace``, atomic on POSIX), so a reader or an interrupted batch only ever sees whole
+files. Readers need no lock; files whose name starts with ``.`` are ignored (leftover
+temporary files are removed by the next writer).
+
+The lock: created with ``O_CREAT | O_EXCL``. Another live process on this host holding it
+(or any holder on another host) is a :class:`~grasp_apso.errors.DatabaseError`; a lock whose
+pid no longer runs on this host is stale and taken over (renamed away atomically, so of two
+batches taking it over at once only one wins).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import signal
+import socket
+import time
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ..errors import DatabaseError
+from .schema import FAILURE_SCHEMA, FORMAT_NAME, GRASP_SCHEMA, SCHEMA_VERSION
+
+__all__ = ["GraspStore", "MARKER", "pid_alive", "read_parts"]
+
+MARKER = "grasp_database.json"
+TABLES = {"grasps": GRASP_SCHEMA, "failures": FAILURE_SCHEMA}
+
+
+def pid_alive(pid: int) -> bool:
+    """True when a process with this pid exists on this host (signal 0 probe)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _part_files(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.glob("part-*.parquet") if p.is_file())
+
+
+def read_parts(folder: Path, schema: pa.Schema, columns: list[str] | None = None,
+               field: str = "grasp_database") -> pa.Table:
+    """All part files of one table concatenated (``columns`` only, when given).
+
+    Raises
+    ------
+    DatabaseError
+        ``<field>: cannot read <file>: ...`` for a corrupt or unreadable file, or a file
+        missing a column of ``schema``.
+    """
+    want = schema if columns is None else pa.schema([schema.field(c) for c in columns])
+    tables = []
+    for path in _part_files(folder):
+        tables.append(read_file(path, want, field))
+    if not tables:
+        return want.empty_table()
+    return pa.concat_tables(tables)
+
+
+def read_file(path: Path, want: pa.Schema, field: str = "grasp_database") -> pa.Table:
+    """One Parquet file, checked to hold the columns of ``want`` with their types."""
+    try:
+        table = pq.read_table(path, columns=want.names)
+    except (OSError, pa.ArrowException, ValueError) as exc:
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DatabaseError(f"{field}: cannot read {path}: {detail}", field) from None
+    for f in want:
+        got = table.schema.field(f.name).type
+        if got != f.type:
+            raise DatabaseError(
+                f"{field}: {path}: column {f.name} has type {got}, expected {f.type}", field)
+    return table.select(want.names).cast(want)
+
+
+class GraspStore:
+    """A grasp database directory: create, lock, append part files, read tables.
+
+    Parameters
+    ----------
+    root : path
+        The database directory.
+    field : str
+        Name used in error messages (``--out`` for the batch, ``grasp_database`` for the node).
+    """
+
+    def __init__(self, root: str | os.PathLike, field: str = "--out"):
+        self.root = Path(root)
+        self.field = field
+        self._seq = 0
+        self._locked = False
+
+    # ------------------------------------------------------------------ creation
+    def create(self) -> None:
+        """Create the directory and marker (no-op when it is already a database)."""
+        if self.root.exists() and not self.root.is_dir():
+            raise DatabaseError(f"{self.field}: {self.root} exists and is not a directory", self.field)
+        marker = self.root / MARKER
+        if self.root.is_dir() and any(self.root.iterdir()) and not marker.is_file():
+            raise DatabaseError(
+                f"{self.field}: {self.root} is a non-empty directory that is not a grasp database "
+                f"(no {MARKER})", self.field)
+        try:
+            for name in TABLES:
+                (self.root / name).mkdir(parents=True, exist_ok=True)
+            if not marker.is_file():
+                text = json.dumps({"format": FORMAT_NAME, "schema_version": SCHEMA_VERSION,
+                                   "created": _now().isoformat()}, indent=1)
+                self._atomic_bytes(marker, text.encode())
+        except OSError as exc:
+            raise DatabaseError(f"{self.field}: cannot create {self.root}: {exc.strerror or exc}",
+                                self.field) from None
+
+    def check_marker(self) -> None:
+        """Raise DatabaseError unless ``root`` holds a readable marker of this format."""
+        marker = self.root / MARKER
+        try:
+            data = json.loads(marker.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise DatabaseError(f"{self.field}: {self.root} is not a grasp database (no {MARKER})",
+                                self.field) from None
+        except (OSError, ValueError) as exc:
+            raise DatabaseError(f"{self.field}: cannot read {marker}: {exc}", self.field) from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+            raise DatabaseError(f"{self.field}: {marker} is not a {FORMAT_NAME} marker", self.field)
+        if int(data.get("schema_version", -1)) > SCHEMA_VERSION:
+            raise DatabaseError(
+                f"{self.field}: {self.root} has schema version {data.get('schema_version')}, this "
+                f"grasp_apso reads up to {SCHEMA_VERSION}", self.field)
+
+    # ------------------------------------------------------------------ lock
+    @property
+    def lock_path(self) -> Path:
+        return self.root / "LOCK"
+
+    def acquire(self) -> None:
+        """Take the writer lock or raise DatabaseError naming the holder."""
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "started": _now().isoformat()}
+        payload = json.dumps(me).encode()
+        for _ in range(5):
+            try:
+                fd = os.open(self.lock_path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                holder = self._read_lock()
+                if holder is None:  # being written right now, or garbage: look again
+                    time.sleep(0.1)
+                    holder = self._read_lock()
+                    if holder is None:
+                        holder = {"pid": -1, "host": me["host"]}
+                self._refuse_or_take_over(holder, me["host"])
+                continue
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(payload)
+                handle.flush()
+                os.fsync(handle.fileno())
+            self._locked = True
+            self._clean_temporaries()
+            return
+        raise DatabaseError(f"{self.field}: could not take the lock {self.lock_path}", self.field)
+
+    def _refuse_or_take_over(self, holder: dict, host: str) -> None:
+        pid = int(holder.get("pid", -1)) if str(holder.get("pid", "")).lstrip("-").isdigit() else -1
+        if holder.get("host") != host or pid_alive(pid):
+            raise DatabaseError(
+                f"{self.field}: {self.root} is locked by another batch (pid {pid} on host "
+                f"{holder.get('host')}, since {holder.get('started', '?')}); wait for it to finish, "
+                f"or delete {self.lock_path} if that process is gone", self.field)
+        stale = self.root / f".LOCK.stale.{os.getpid()}"
+        try:
+            os.rename(self.lock_path, stale)
+        except FileNotFoundError:
+            return  # someone else removed it: try to create again
+        taken = _read_json(stale)
+        if taken is not None and taken.get("pid") != holder.get("pid"):
+            # We moved a fresh lock of a batch that took over first: put it back.
+            try:
+                os.link(stale, self.lock_path)
+            except FileExistsError:
+                pass
+            stale.unlink(missing_ok=True)
+            raise DatabaseError(f"{self.field}: {self.root} was just locked by another batch "
+                                f"(pid {taken.get('pid')})", self.field)
+        stale.unlink(missing_ok=True)
+
+    def _read_lock(self) -> dict | None:
+        return _read_json(self.lock_path)
+
+    def release(self) -> None:
+        """Remove the lock if this process holds it."""
+        if not self._locked:
+            return
+        holder = self._read_lock()
+        if holder is not None and holder.get("pid") == os.getpid():
+            self.lock_path.unlink(missing_ok=True)
+        self._locked = False
+
+    def _clean_temporaries(self) -> None:
+        for name in TABLES:
+            for tmp in (self.root / name).glob(".part-*.tmp"):
+                tmp.unlink(missing_ok=True)
+
+    # ------------------------------------------------------------------ writing
+    def append(self, table_name: str, columns: dict[str, list]) -> Path | None:
+        """Write rows as one new part file, atomically; returns its path (None: no rows).
+
+        SIGINT is blocked while the file is written and renamed, so Ctrl-C cannot leave
+        half a part behind (it is delivered right after).
+        """
+        schema = TABLES[table_name]
+        if not columns or not next(iter(columns.values())):
+            return None
+        table = pa.Table.from_pydict(columns, schema=schema)
+        self._seq += 1
+        name = f"part-{time.time_ns():020d}-{os.getpid()}-{self._seq:05d}.parquet"
+        final = self.root / table_name / name
+        tmp = final.with_name(f".{name}.tmp")
+        blocked = _block_sigint()
+        try:
+            with open(tmp, "wb") as handle:
+                pq.write_table(table, handle, compression="zstd")
+                handle.flush()
+                os.fsync(handle.fileno())
+            os.replace(tmp, final)
+            _fsync_dir(final.parent)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise DatabaseError(f"{self.field}: cannot write {final}: {exc.strerror or exc}",
+                                self.field) from None
+        finally:
+            _unblock_sigint(blocked)
+        return final
+
+    def _atomic_bytes(self, path: Path, data: bytes) -> None:
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+
+    # ------------------------------------------------------------------ reading
+    def read(self, table_name: str, columns: list[str] | None = None) -> pa.Table:
+        """A whole table (all part files), ``columns`` only when given."""
+        return read_parts(self.root / table_name, TABLES[table_name], columns, self.field)
+
+    def part_count(self, table_name: str) -> int:
+        return len(_part_files(self.root / table_name))
+
+
+def _read_json(path: Path) -> dict | None:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _block_sigint() -> bool:
+    try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        return True
+    except (ValueError, OSError, AttributeError):
+        return False
+
+
+def _unblock_sigint(blocked: bool) -> None:
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _now() -> _dt.datetime:
+    return _dt.datetime.now(_dt.timezone.utc)

@@ -1,0 +1,120 @@
+"""Contact robustness (grasp_apso.quality.robustness): the normal uncertainty is small on
+a face and large at an edge or a corner; the robust epsilon never exceeds the epsilon."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from grasp_apso.model.builtin import builtin
+from grasp_apso.quality.measures import epsilon_quality
+from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon, robustness_score
+
+H = 0.035  # half edge of the built-in cube (edge 0.07 m), centred at the origin
+MU = 0.5
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return builtin("cube")
+
+
+def _box_grasp(offset: float = 0.0):
+    """Four contacts on four side faces of the cube (outward normals), the first one
+    ``offset`` m from the face centre toward the top edge."""
+    points = np.array([[H, 0.01, 0.005 + offset], [-H, -0.01, 0.0], [0.0, H, 0.01], [0.005, -H, -0.01]])
+    normals = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
+    return points, normals
+
+
+def test_flat_face_edge_and_corner(cube):
+    points = np.array([[H, 0.0, 0.0],            # face centre
+                       [H, 0.0, -0.02],          # on the face, 15 mm from the nearest edge
+                       [H, H, 0.0],              # on an edge
+                       [H, H, H],                # a corner
+                       [H, H - 0.002, 0.0]])     # 2 mm from an edge, within the 4 mm radius
+    u = normal_uncertainty(cube, points)
+    assert u.shape == (5,)
+    assert u[0] == pytest.approx(0.0, abs=1e-6) and u[1] == pytest.approx(0.0, abs=1e-6)
+    # two faces at 90 degrees, equal weights: 45 degrees from their mean normal
+    assert u[2] == pytest.approx(math.radians(45.0), abs=1e-6)
+    # three faces: about 54.7 degrees (the triangulation weighs them a little unequally)
+    assert math.radians(50.0) < u[3] < math.radians(56.0)
+    # the other face is 2 mm away: it weighs (r^2 - d^2) / r^2 = 3/4, close to the edge value
+    assert math.radians(40.0) < u[4] < math.radians(45.0)
+    # both edge and corner exceed the friction cone half-angle atan(0.5) = 26.6 degrees
+    assert np.all(u[2:] > math.atan(MU))
+
+
+def test_uncertainty_grows_toward_the_edge_and_with_the_radius(cube):
+    d = np.array([0.010, 0.004, 0.003, 0.002, 0.0])  # distance to the edge y = H, m
+    points = np.column_stack([np.full(5, H), H - d, np.zeros(5)])
+    u = normal_uncertainty(cube, points)
+    assert u[0] == pytest.approx(0.0, abs=1e-9) and u[1] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(np.diff(u[1:]) > 0.0)
+    wide = normal_uncertainty(cube, points[:1], radius=0.012)
+    assert wide[0] > math.radians(20.0)  # a 12 mm neighbourhood reaches the edge 10 mm away
+
+
+def test_smooth_sphere_is_nearly_certain():
+    sphere = builtin("sphere")  # diameter 5 cm, icosphere: facets about 10 degrees apart
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(20, 3))
+    u = normal_uncertainty(sphere, 0.025 * d / np.linalg.norm(d, axis=1, keepdims=True))
+    assert np.all(u < math.radians(15.0)) and np.all(u > 0.0)
+
+
+def test_robust_epsilon_equals_epsilon_without_uncertainty(cube):
+    points, normals = _box_grasp()
+    eps, fc = epsilon_quality(points, normals, cube.center_of_mass, MU, 8, cube.characteristic_radius)
+    assert fc and eps > 0.01
+    assert robust_epsilon(cube, points, normals, MU, np.zeros(4)) == pytest.approx(eps, rel=1e-9)
+    # all four contacts lie mid-face: the computed uncertainty is 0, the same epsilon
+    assert robust_epsilon(cube, points, normals, MU) == pytest.approx(eps, rel=1e-9)
+
+
+def test_robust_epsilon_never_exceeds_epsilon(cube):
+    points, normals = _box_grasp()
+    eps, _ = epsilon_quality(points, normals, cube.center_of_mass, MU, 8, cube.characteristic_radius)
+    rng = np.random.default_rng(3)
+    values = [robust_epsilon(cube, points, normals, MU, u) for u in rng.uniform(0.0, 0.5, size=(20, 4))]
+    assert max(values) <= eps + 1e-12
+    # shrinking every cone further never raises the robust epsilon
+    levels = [robust_epsilon(cube, points, normals, MU, np.full(4, a)) for a in (0.0, 0.1, 0.2, 0.3)]
+    assert all(b <= a + 1e-12 for a, b in zip(levels, levels[1:]))
+    assert levels[2] < 0.7 * levels[0]
+
+
+def test_an_edge_contact_loses_its_force(cube):
+    """The first contact moved onto the top edge: its uncertainty (45 deg) exceeds the
+    friction cone (26.6 deg) and it is dropped: the three others keep under half the
+    grasp's margin."""
+    points, normals = _box_grasp(offset=H - 0.005)  # z = H: on the top edge
+    score = robustness_score(cube, points, normals, MU)
+    assert score["uncertainty"][0] == pytest.approx(math.radians(45.0), abs=1e-6)
+    assert score["epsilon"] > 0.0
+    assert 0.0 < score["margin"] < 0.8
+    # a dropped contact contributes nothing, whatever its uncertainty beyond the cone
+    beyond = [robust_epsilon(cube, points, normals, MU, np.array([u, 0.0, 0.0, 0.0])) for u in (0.47, 0.8, 1.5)]
+    assert beyond[0] == beyond[1] == beyond[2] == score["robust_epsilon"]
+    # dropping a mid-face contact instead (uncertainty 1 rad) lowers it as well
+    assert robust_epsilon(cube, points, normals, MU, np.array([0.0, 0.0, 0.0, 1.0])) < score["epsilon"]
+    # mid-face, the same grasp keeps its whole margin
+    centred = robustness_score(cube, *_box_grasp(), MU)
+    assert centred["margin"] == pytest.approx(1.0)
+
+
+def test_deterministic_and_checked(cube):
+    points, normals = _box_grasp(offset=0.02)
+    first = robustness_score(cube, points, normals, MU)
+    again = robustness_score(cube, points, normals, MU)
+    assert np.array_equal(first["uncertainty"], again["uncertainty"])
+    assert first["robust_epsilon"] == again["robust_epsilon"]
+    with pytest.raises(ValueError):
+        normal_uncertainty(cube, np.zeros((2, 2)))
+    with pytest.raises(ValueError):
+        normal_uncertainty(cube, points, radius=0.0)
+    with pytest.raises(ValueError):
+        robust_epsilon(cube, points, normals, MU, np.full(4, -0.1))
