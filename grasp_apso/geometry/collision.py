@@ -11,6 +11,7 @@ returned grasp and in tests to cross-check the grid-based decoding.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import threading
 from itertools import combinations
 
 import fcl
@@ -148,6 +149,44 @@ def _collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
     return fcl.collide(a, b, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
 
 
+#: Link pairs of different fingers (indices into the 15 links, finger-major).
+_LINK_PAIRS = tuple(np.array(v, dtype=np.int64) for v in zip(*[
+    (3 * i + a, 3 * j + b) for i, j in FINGER_PAIRS for a in range(3) for b in range(3)]))
+#: Segment-distance margin (m) within which fcl decides whether two finger capsules collide.
+_PAIR_MARGIN = 0.001
+_LOCAL = threading.local()
+
+
+def _cached_capsule(radius: float, length: float, tf: fcl.Transform, slot: int) -> fcl.CollisionObject:
+    """A per-thread cached fcl capsule object of this size (created once, then moved
+    with ``setTransform``); ``slot`` separates objects used at the same time."""
+    cache = getattr(_LOCAL, "capsules", None)
+    if cache is None:
+        cache = _LOCAL.capsules = {}
+    key = (round(radius, 9), round(length, 9), slot)
+    obj = cache.get(key)
+    if obj is None:
+        if len(cache) > 512:
+            cache.clear()
+        obj = cache[key] = fcl.CollisionObject(fcl.Capsule(radius, length), tf)
+    else:
+        obj.setTransform(tf)
+    return obj
+
+
+def _mesh_object(bvh: fcl.BVHModel) -> fcl.CollisionObject:
+    """The per-thread cached fcl object of a BVH at the identity."""
+    cache = getattr(_LOCAL, "meshes", None)
+    if cache is None:
+        cache = _LOCAL.meshes = {}
+    entry = cache.get(id(bvh))
+    if entry is None or entry[0] is not bvh:
+        if len(cache) >= 8:
+            cache.pop(next(iter(cache)))
+        entry = cache[id(bvh)] = (bvh, fcl.CollisionObject(bvh, fcl.Transform()))
+    return entry[1]
+
+
 def verify_with_fcl(
     joints: np.ndarray,
     radii: np.ndarray,
@@ -171,24 +210,45 @@ def verify_with_fcl(
     allowed_overlap : float, m
         Finger capsules may overlap this much (as in :func:`finger_collisions`).
     """
-    mesh_obj = fcl.CollisionObject(bvh, fcl.Transform())
+    joints = np.asarray(joints, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    rot, centre, length = capsule_frames(joints[:, :3], joints[:, 1:])  # (5, 3, ...) in one batch
+    mesh_obj = _mesh_object(bvh)
     dist = np.zeros((5, 3))
     penetrates = np.zeros((5, 3), dtype=bool)
     for f in range(5):
         for k in range(3):
-            full = _capsule(joints[f, k], joints[f, k + 1], float(radii[k]))
-            if _collide(full, mesh_obj):
-                shrunk = _capsule(joints[f, k], joints[f, k + 1], float(radii[k]) - penetration_tolerance)
+            tf = fcl.Transform(rot[f, k], centre[f, k])
+            full = _cached_capsule(float(radii[k]), float(length[f, k]), tf, 0)
+            # one distance query: fcl answers -1 (<= 0) for a pair in collision
+            d = fcl.distance(full, mesh_obj, fcl.DistanceRequest(), fcl.DistanceResult())
+            if d > 1e-6:
+                dist[f, k] = d
+            elif _collide(full, mesh_obj):
+                shrunk = _cached_capsule(float(radii[k]) - penetration_tolerance, float(length[f, k]), tf, 1)
                 penetrates[f, k] = _collide(shrunk, mesh_obj)
             else:
-                dist[f, k] = fcl.distance(full, mesh_obj, fcl.DistanceRequest(), fcl.DistanceResult())
-    shrunk_links = [
-        [_capsule(joints[f, k], joints[f, k + 1], float(radii[k]) - 0.5 * allowed_overlap) for k in range(3)]
-        for f in range(5)
-    ]
-    pairs = tuple(
-        (finger_names[i], finger_names[j])
-        for i, j in FINGER_PAIRS
-        if any(_collide(shrunk_links[i][a], shrunk_links[j][b]) for a in range(3) for b in range(3))
-    )
+                dist[f, k] = max(d, 0.0)
+    # Finger pairs: fcl decides for the link pairs whose segments come within the sum of
+    # the shrunk radii plus a margin (the compiled segment distances, one batch); pairs
+    # farther apart cannot collide.
+    shrink = 0.5 * allowed_overlap
+    ia, ib = _LINK_PAIRS
+    p0, p1 = joints[:, :3].reshape(15, 3), joints[:, 1:].reshape(15, 3)
+    seg = segment_distances(p0[ia], p1[ia], p0[ib], p1[ib])
+    link_r = np.tile(radii, 5) - shrink
+    near = seg < link_r[ia] + link_r[ib] + _PAIR_MARGIN
+    colliding = set()
+    for n in np.flatnonzero(near):
+        a, b = int(ia[n]), int(ib[n])
+        fa, fb = a // 3, b // 3
+        if (fa, fb) in colliding:
+            continue
+        oa = _cached_capsule(float(link_r[a]), float(length[fa, a % 3]),
+                             fcl.Transform(rot[fa, a % 3], centre[fa, a % 3]), 2)
+        ob = _cached_capsule(float(link_r[b]), float(length[fb, b % 3]),
+                             fcl.Transform(rot[fb, b % 3], centre[fb, b % 3]), 3)
+        if _collide(oa, ob):
+            colliding.add((fa, fb))
+    pairs = tuple((finger_names[i], finger_names[j]) for i, j in FINGER_PAIRS if (i, j) in colliding)
     return FclReport(link_distance=dist, link_penetrates=penetrates, finger_pairs_colliding=pairs)

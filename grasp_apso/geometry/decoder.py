@@ -472,9 +472,16 @@ def decode(
         "joints": pts[:, _JOINT_INDEX, :],
     }
     if model.scene is not None:
-        per_row["scene_margin"] = np.minimum(
-            _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts),
-            _approach_object_gaps(model, rows, rot, trans, planes, distal0, proximal0) - APPROACH_TOUCH)
+        margin = _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts)
+        # The open hand's approach past the object is traced only for finger rows that
+        # are otherwise legal (the costly part of the scene check: a finger already
+        # illegal is rejected or regenerated whatever its approach).
+        trace = ((margin >= 0.0) & ~blocked_r & ~link_contact_r
+                 & (per_row["penetration"] <= settings.max_penetration))
+        if trace.any():
+            margin[trace] = np.minimum(margin[trace], _approach_object_gaps(
+                model, rows[trace], rot, trans, planes, distal0, proximal0) - APPROACH_TOUCH)
+        per_row["scene_margin"] = margin
     if reuse is None:
         out = {name: value.reshape((n, N_FINGERS) + value.shape[1:]) for name, value in per_row.items()}
         flexions = flex_r.reshape(n, N_FINGERS, 2)
@@ -555,6 +562,19 @@ def _palm_scene_gaps(model, rot, trans) -> np.ndarray:
     scene_kernels.palm_scene_gaps(rot, trans, model.palm_center, model.palm_half_extents, model.approach_distance,
                                   model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps)
     return gaps - model.scene_clearance
+
+
+def warm_scene_kernels(model: GraspModel) -> None:
+    """Load the scene kernels a decode may call (``model`` with a scene): some run only
+    for the finger rows that need them, so a decode alone may not load them all."""
+    x = 0.5 * (model.lower + model.upper)[None, :]
+    decode(model, x)
+    wrist = wrist_transforms(model, x)
+    rot, trans = np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3])
+    theta = LAYOUT.finger_values(x)
+    planes = np.ascontiguousarray(np.stack(model.hand.flexion_planes(theta[..., 2]), axis=-2).reshape(-1, 3, 3))
+    rows = np.arange(N_FINGERS, dtype=np.int64)
+    _approach_object_gaps(model, rows, rot, trans, planes, theta[..., 0], theta[..., 1])
 
 
 def _rows_to_decode(x: np.ndarray, reuse: DecodedGrasps | None, changed: np.ndarray | None) -> np.ndarray:

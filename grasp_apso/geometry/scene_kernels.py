@@ -150,12 +150,24 @@ def _spheres_path_gap(q, radii, count, zx, zy, zz, length, n_steps, horizon,
         _inv_center(inv, centre)
         if _point_segment(centre[0], centre[1], centre[2], cx, cy, cz, dx, dy, dz, length2) - reach - bound >= best:
             continue
-        for m in range(count):
-            r = radii[m]
-            half_step = 0.5 * delta
-            margin = r - math.sqrt(max(r * r - half_step * half_step, 0.0)) if half_step < r else half_step
-            for j in range(steps):
-                t = j / (steps - 1) if steps > 1 else 0.0
+        half_step = 0.5 * delta
+        for j in range(steps):
+            t = j / (steps - 1) if steps > 1 else 0.0
+            # The set's bounding sphere first: the distance is 1-Lipschitz, so no sphere
+            # of the set (nor its sweep to the next sample) is nearer than the centre's
+            # distance minus the bound and the half step.
+            x = cx + t * dx
+            y = cy + t * dy
+            z = cz + t * dz
+            if is_box:
+                g = _box_point(inv, box_half[k], x, y, z)
+            else:
+                g = _cylinder_point(inv, cyl_radius[c], cyl_half[c], x, y, z)
+            if g - bound - (half_step if steps > 1 else 0.0) >= best:
+                continue
+            for m in range(count):
+                r = radii[m]
+                margin = r - math.sqrt(max(r * r - half_step * half_step, 0.0)) if half_step < r else half_step
                 x = q[m, 0] + t * dx
                 y = q[m, 1] + t * dy
                 z = q[m, 2] + t * dz
@@ -204,6 +216,9 @@ def finger_scene_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pr
             q[m, 2] = closed_points[k, m, 2]
         gap = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, 0.0, 1, horizon, planes, box_inv, box_half,
                                 sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half)
+        if gap < 0.0:  # illegal at the grasp already: the approach is not traced
+            out[k] = gap
+            continue
         # the open pre-shape along the approach
         for a in range(3):
             for i in range(3):

@@ -21,7 +21,8 @@ import numpy as np
 from ..errors import InputError, ObjectTooLargeError, PlanningError
 from ..geometry.collision import mesh_bvh
 from ..geometry.decoder import (
-    N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model, with_scene,
+    N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model, warm_scene_kernels,
+    with_scene,
 )
 from ..model.builtin import builtin
 from ..model.hand import JOINT_NAMES, HandModel, load_hand
@@ -271,8 +272,7 @@ def warm_up() -> float:
     prepare(cube).sdf.distance(np.zeros(3))  # plain look-ups: the fixed-wrist path's palm check
     # the scene kernels (their signatures do not depend on which primitives a scene holds)
     table = Scene.table_under(np.asarray(cube.mesh.vertices))
-    scene_model = with_scene(prepare(cube), table, 0.005, 0.08)
-    decode(scene_model, 0.5 * (scene_model.lower + scene_model.upper)[None, :])
+    warm_scene_kernels(with_scene(prepare(cube), table, 0.005, 0.08))
     return time.perf_counter() - t0
 
 
