@@ -749,6 +749,23 @@ def test_cube_on_a_table_returns_ranked_grasps_with_pre_grasps(ros):
     assert ros.progress.wait_count(res.request_id, res.iterations_run, 10.0) == res.iterations_run
 
 
+def test_simulate_fills_the_simulation_fields_of_every_grasp(ros):
+    """simulate: every candidate is checked in MuJoCo; held grasps rank first."""
+    req = builtin_request('sphere', iterations=10, max_grasps=3, simulate=True)
+    req.support_planes = [_plane(0.0, 0.0, 1.0, 0.025)]  # the sphere (radius 25 mm) rests on z = -0.025
+    res = ros.call(req, timeout=120.0)
+    assert res.success, res.message
+    assert len(res.grasps) >= 1
+    verdicts = [g.sim_result for g in res.grasps]
+    assert all(v in (0, 1) for v in verdicts), verdicts
+    assert verdicts == sorted(verdicts, reverse=True)
+    for g in res.grasps:
+        assert math.isfinite(g.sim_max_shift) and g.sim_max_shift >= 0.0
+        assert math.isfinite(g.sim_max_turn) and g.sim_max_turn >= 0.0
+        if g.sim_result == 1:
+            assert g.sim_max_shift < 0.05 and g.sim_max_turn < math.radians(15.0)
+
+
 def test_markers_show_the_scene(ros):
     late_msgs = []
     got = threading.Event()
