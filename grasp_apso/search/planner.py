@@ -20,8 +20,9 @@ import numpy as np
 
 from ..errors import InputError, ObjectTooLargeError, PlanningError
 from ..geometry.collision import mesh_bvh
+from ..geometry.contact_settings import ContactSettings
 from ..geometry.decoder import (
-    N_DIMS, ContactSettings, DecodedGrasps, GraspModel, decode, make_grasp_model, warm_scene_kernels,
+    N_DIMS, DecodedGrasps, GraspModel, decode, make_grasp_model, warm_scene_kernels,
     with_scene,
 )
 from ..model.builtin import builtin
