@@ -58,6 +58,15 @@ def test_grasp_quality_tiers():
     held = grasp_quality(np.array([0.2, 0.9]), np.array([True, True]), np.array([True, True]),
                          held=np.array([True, False]))
     assert held[0] > held[1]
+    # robust force closure (closure survives edge/corner normal uncertainty) before fragile
+    robust = grasp_quality(np.array([0.3, 0.95, 0.99]), np.array([True, True, True]),
+                           np.array([True, True, False]), robust=np.array([True, False, False]))
+    assert robust[0] > robust[1] > robust[2]
+    # the simulation outranks everything: a held fragile grasp before a dropped robust one
+    both = grasp_quality(np.array([0.1, 0.99]), np.array([True, True]), np.array([True, True]),
+                         held=np.array([True, False]), robust=np.array([False, True]))
+    assert both[0] > both[1]
+    assert np.all((both >= 0) & (both <= 1))
 
 
 @pytest.fixture(scope="module")
