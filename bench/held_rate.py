@@ -84,13 +84,13 @@ def run_case(task: tuple) -> dict:
     from grasp_apso.search.planner import plan
     from grasp_apso.simulation import simulate_grasp
 
-    name, pose_index, pose, algorithm, seed, swarm = task
+    name, pose_index, pose, algorithm, seed, swarm, simulate = task
     obj, hand = load(name), load_hand()
     rot = pose[:3, :3]
     vertices = np.asarray(obj.mesh.vertices) @ rot.T + pose[:3, 3]
     scene = Scene.table_under(vertices)
     top, low = float(vertices[:, 2].max()), float(vertices[:, 2].min())
-    options = PlanOptions(algorithm=algorithm, **swarm)
+    options = PlanOptions(algorithm=algorithm, simulate=simulate, **swarm)
     row = {"object": name, "pose": pose_index, "algorithm": algorithm, "seed": seed, "candidates": []}
     t0 = time.perf_counter()
     try:
@@ -232,6 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--algorithms", nargs="+", default=["apso", "pso"], choices=["apso", "pso"])
     parser.add_argument("--objects", nargs="+", default=None, help="default: 4 built-ins + every mesh")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--simulate", action="store_true",
+                        help="plan with PlanOptions.simulate (the simulation in the final selection: "
+                             "held candidates first); every candidate is then simulated again here")
     parser.add_argument("--failures", action="store_true", help="print every dropped grasp")
     parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "held_rate.json")
     parser.add_argument("--from-json", type=Path, help="reprint the tables of a saved run, no planning")
@@ -249,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = 1 if args.quick else args.seeds
     swarm = {"particles": 30, "iterations": 20} if args.quick else {}
     poses = pose_list(args.poses)
-    tasks = [(name, k, pose, alg, seed, swarm) for alg in args.algorithms for name in objects
+    tasks = [(name, k, pose, alg, seed, swarm, args.simulate) for alg in args.algorithms for name in objects
              for k, pose in enumerate(poses) for seed in range(seeds)]
     t0 = time.perf_counter()
     load0 = os.getloadavg()[0]

@@ -35,7 +35,7 @@ from .grg import GuidedGenerator, ShapeClass, classify_shape
 from .options import ALGORITHMS, PlanOptions
 from .result import Contact, GraspCandidate, GraspResult
 from .selection import Checked, Verifier, select_candidates, to_candidates
-from .simulated import simulate_checked
+from .simulated import SIMULATION_SPARE, simulate_until_held
 from .swarm import IterationStats, run_swarm
 
 __all__ = [
@@ -212,20 +212,29 @@ def plan(
                 primary, runner_up = other, True
     if scene_obj is not None and not primary.scene_clear:
         primary, runner_up = None, False
-    others, considered, rejected = select_candidates(verifier, primary, archive, options.max_grasps)
+    wanted = options.max_grasps * (SIMULATION_SPARE if options.simulate else 1)
+    others, considered, rejected = select_candidates(verifier, primary, archive, wanted)
     checked = ([primary] if primary is not None else []) + others
     if not checked:
         raise PlanningError(
             f"scene: no collision-free grasp: none of the {len(archive) + 1} best distinct grasps the search "
             f"found keeps the clearance ({options.clearance * 1000:.1f} mm) from the support planes and "
             "obstacles at the grasp, the pre-grasp and along the approach (python-fcl)", "scene")
-    sims = simulate_checked(model.hand, obj, pose, checked, scene, options.friction) if options.simulate else None
+    sims = None
+    if options.simulate:  # the simulation in the final selection: held grasps first
+        checked, sims = simulate_until_held(model.hand, obj, pose, checked, scene, options.friction,
+                                            options.max_grasps, pinned_first=scene_obj is None)
     candidates, order = to_candidates(model.hand, checked, pose, options.approach_distance,
                                       pinned_first=scene_obj is None and sims is None, sims=sims)
     top = checked[int(order[0])]
     runner_up = runner_up and top is primary
     message = _candidates_message(len(candidates), options.max_grasps, len(archive), considered, rejected,
                                   scene_obj is not None)
+    if sims is not None:
+        n_held = sum(s.held for s in sims)
+        if n_held < len(candidates):
+            message = (message + "; " if message else "") + (
+                f"{n_held} of {len(candidates)} held in the simulation (the dropped ones rank last)")
     return _result(top, candidates, message, runner_up, swarm, problem, options, pose, shape, preparation, t1)
 
 

@@ -14,8 +14,14 @@ import numpy as np
 from ..model.hand import HandModel
 from ..model.particle import LAYOUT
 from ..model.scene import Scene
+from .ranking import grasp_quality, rank_order
 
-__all__ = ["simulate_checked"]
+__all__ = ["simulate_checked", "simulate_until_held", "SIMULATION_SPARE"]
+
+#: With ``simulate``, the selection verifies up to this many times ``max_grasps`` grasps,
+#: and simulates them best first until ``max_grasps`` held (bounded: at most that many
+#: simulations, about 0.2 s each).
+SIMULATION_SPARE = 2
 
 
 def simulate_checked(hand: HandModel, obj, pose: np.ndarray, checked: list, scene: Scene | None,
@@ -49,3 +55,33 @@ def simulate_checked(hand: HandModel, obj, pose: np.ndarray, checked: list, scen
                        planes=planes, settings=settings)
         for c in checked
     ]
+
+
+def simulate_until_held(hand: HandModel, obj, pose: np.ndarray, checked: list, scene: Scene | None,
+                        friction: float, max_grasps: int, pinned_first: bool) -> tuple[list, list]:
+    """Simulate verified grasps best first until ``max_grasps`` of them held.
+
+    ``checked`` may hold up to :data:`SIMULATION_SPARE` times ``max_grasps`` grasps; they
+    are simulated in their ranking order without the simulation (``checked[0]`` first when
+    ``pinned_first``), one at a time, and the loop stops once ``max_grasps`` held or every
+    grasp was tried. Returns the simulated grasps and their results: every held one, then
+    the best dropped ones to fill up to ``max_grasps`` (the ranking puts held ones first).
+    """
+    if not checked:
+        return [], []
+    quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
+                            np.array([c.force_closure for c in checked]),
+                            robust=np.array([getattr(c, "robust", c.force_closure) for c in checked]))
+    eps = np.array([c.epsilon for c in checked])
+    order = list(rank_order(quality, eps))
+    if pinned_first:
+        order.remove(0)
+        order.insert(0, 0)
+    held, dropped = [], []
+    for i in order:
+        result = simulate_checked(hand, obj, pose, [checked[i]], scene, friction)[0]
+        (held if result.held else dropped).append((checked[i], result))
+        if len(held) >= max_grasps:
+            break
+    chosen = held + dropped[:max(0, max_grasps - len(held))]
+    return [c for c, _ in chosen], [r for _, r in chosen]
