@@ -295,8 +295,12 @@ def _index(table: pa.Table, path: Path) -> dict[tuple[str, str], _Entry]:
     keys = np.char.add(np.char.add(plain("mesh_hash", str), "\n"), plain("hand_name", str))
     sim_order = np.where(sim == SIM_HELD, 0, np.where(sim == SIM_DROPPED, 2, 1))
     rows = np.flatnonzero(valid)
-    # One sort: by key, then force closure, simulation, quality and fitness (best first).
-    order = rows[np.lexsort((-fitness[rows], -quality[rows], sim_order[rows], ~closure[rows], keys[rows]))]
+    # One sort: by key, then the planner's own rank (its order is the ranking, with the
+    # swarm's best first in free space), then simulation, force closure and quality for
+    # grasps of different batches with the same rank.
+    rank = plain("rank", int)
+    order = rows[np.lexsort((-fitness[rows], -quality[rows], ~closure[rows], sim_order[rows], rank[rows],
+                             keys[rows]))]
     sorted_keys = keys[order]
     cuts = np.flatnonzero(sorted_keys[1:] != sorted_keys[:-1]) + 1
     entries = {}
