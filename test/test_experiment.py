@@ -50,7 +50,10 @@ def test_json_has_the_table3_numbers(quick_run):
             assert all(at[k]["median"] is not None and at[k]["q1"] <= at[k]["median"] <= at[k]["q3"] for k in at)
             for run in data["runs"][obj][alg]:
                 assert len(run["best_history"]) == cfg["iterations"]
-                assert run["best_history"][-1] == pytest.approx(run["fitness"], abs=1e-6)
+                if run["runner_up"]:  # a less fit force-closure grasp replaced the swarm's best
+                    assert run["fitness"] <= run["best_history"][-1] + 1e-6
+                else:
+                    assert run["best_history"][-1] == pytest.approx(run["fitness"], abs=1e-6)
         # PSO on APSO's budget stops within one iteration of APSO's evaluations.
         for apso, eq in zip(data["runs"][obj]["apso"], data["runs"][obj]["pso_equal_budget"]):
             assert eq["budget"] == apso["evaluations"]

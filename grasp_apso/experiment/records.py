@@ -44,20 +44,9 @@ def record_of(result: GraspResult, seed: int, hand=None, wall: float | None = No
         "evaluations": int(result.evaluations),
         "iterations_run": int(result.iterations_run),
         "thumb_contact": any(c.finger == "thumb" for c in result.contacts),
-        "links_touching": _links_touching(result),
+        "links_touching": int(result.touching_links().sum()),
+        # the swarm's best was not force closure: a less fit force-closure grasp was returned
+        "runner_up": bool(result.runner_up),
         "best_history": [_round(h.best_fitness) for h in result.history],
         "evaluations_history": [int(h.evaluations) for h in result.history],
     }
-
-
-def _links_touching(result: GraspResult, tolerance: float = 1e-4) -> int:
-    """Links resting on the object (python-fcl distance 0) other than a contact's distal link
-    (the rule of ``plotting``'s dotted links): not a pure fingertip grasp when > 0."""
-    distance = getattr(result.fcl, "link_distance", None)
-    if distance is None:
-        return 0
-    touching = np.asarray(distance, float) <= tolerance
-    for c in result.contacts:
-        if c.finger in FINGER_NAMES:
-            touching[FINGER_NAMES.index(c.finger), -1] = False
-    return int(touching.sum())

@@ -39,6 +39,7 @@ from .collision import finger_collisions
 from ..model.hand import N_FINGERS, HandModel, wrist_rotation
 from ..model.particle import LAYOUT
 from .contact_settings import ContactSettings
+from .normal_spread import NormalSpreadGrid, cached_normal_spread_grid
 from .sdf import SignedDistanceGrid, cached_sdf_grid
 
 #: Particle size and standoff index (named slices: :data:`grasp_apso.model.particle.LAYOUT`).
@@ -114,6 +115,9 @@ class GraspModel:
     #: Least hand-scene distance (m) and the pre-grasp retreat (m) of the scene check.
     scene_clearance: float = 0.0
     approach_distance: float = 0.0
+    #: Normal spread (rad) around the surface points (:mod:`grasp_apso.geometry.normal_spread`),
+    #: read by the fitness per contact; None: every contact counts as well defined.
+    spread: NormalSpreadGrid | None = field(default=None, repr=False)
 
     @property
     def dims(self) -> int:
@@ -152,7 +156,8 @@ def with_scene(model: GraspModel, scene, clearance: float, approach_distance: fl
 
 
 def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = None) -> GraspModel:
-    """Prepare an object for planning: its signed-distance grid (cached by mesh hash).
+    """Prepare an object for planning: its signed-distance and normal-spread grids (cached
+    by mesh hash).
 
     Parameters
     ----------
@@ -164,6 +169,7 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     # Decisions are made within a link radius plus the tolerance of the surface; the
     # padding covers that with margin (farther points read an over-estimate).
     grid = cached_sdf_grid(obj.mesh, obj.mesh_hash, padding=0.025)
+    spread = cached_normal_spread_grid(obj.mesh, grid, obj.mesh_hash, padding=0.025)
     lower = np.concatenate([hand.lower, [0.0]])
     upper = np.concatenate([hand.upper, [settings.standoff_max]])
     final_radii = np.array([hand.link_radii[int(k)] for k, _ in _FINAL_POINTS])
@@ -180,7 +186,7 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
         point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
         link_lengths=link_lengths, capsule_radii=capsule_radii, palm_center=palm_center,
-        palm_half_extents=palm_half,
+        palm_half_extents=palm_half, spread=spread,
     )
 
 

@@ -77,6 +77,74 @@ def grid_distances(values, origin, spacing, x, y, z, out):
 
 
 @_jit
+def grid_values(values, origin, spacing, points, out):
+    """Trilinear interpolation of a grid of any quantity, clamped to the grid box (no
+    distance term: the normal-spread grid, :mod:`grasp_apso.geometry.normal_spread`).
+
+    values : (nx, ny, nz) float; origin : (3,) float, m; spacing : float, m
+    points : (N, 3) float, m; out : (N,) float (written; 0 at a non-finite point)
+    """
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    inv = 1.0 / spacing
+    for n in range(points.shape[0]):
+        x, y, z = points[n, 0], points[n, 1], points[n, 2]
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            out[n] = 0.0
+            continue
+        # spacing 0: the distance-to-box term of _grid_distance vanishes (clamped value)
+        out[n] = _grid_distance(values, ox, oy, oz, inv, 0.0, x, y, z)
+
+
+@_jit
+def normal_spreads(dist, index, normals, reference, radius, back_cos, out):
+    """Weighted RMS angle of sample normals around their weighted mean, per node.
+
+    dist, index : (N, K) float m, int: the K nearest surface samples of each node's
+    closest surface point (``cKDTree.query`` with ``distance_upper_bound``: missing ones
+    are inf / ``len(normals)``); normals : (S, 3) unit sample normals; reference : (N, 3)
+    unit, samples whose normal's cosine to it is <= back_cos are left out; the others
+    within ``radius`` weigh 1 (area-weighted samples: the area of the disc, as
+    ``quality.robustness.normal_uncertainty``); out : (N,) rad (written; 0 without a
+    neighbour).
+    """
+    n_samples = normals.shape[0]
+    for n in range(dist.shape[0]):
+        mx = my = mz = 0.0
+        total = 0.0
+        for k in range(dist.shape[1]):
+            j = index[n, k]
+            if j >= n_samples or not dist[n, k] < radius:
+                continue
+            if (normals[j, 0] * reference[n, 0] + normals[j, 1] * reference[n, 1]
+                    + normals[j, 2] * reference[n, 2]) <= back_cos:
+                continue
+            w = 1.0
+            mx += w * normals[j, 0]
+            my += w * normals[j, 1]
+            mz += w * normals[j, 2]
+            total += w
+        norm = math.sqrt(mx * mx + my * my + mz * mz)
+        if total <= 0.0 or norm <= 1e-12:
+            out[n] = 0.0
+            continue
+        mx /= norm
+        my /= norm
+        mz /= norm
+        acc = 0.0
+        for k in range(dist.shape[1]):
+            j = index[n, k]
+            if j >= n_samples or not dist[n, k] < radius:
+                continue
+            c = normals[j, 0] * reference[n, 0] + normals[j, 1] * reference[n, 1] + normals[j, 2] * reference[n, 2]
+            if c <= back_cos:
+                continue
+            w = 1.0
+            a = math.acos(min(max(normals[j, 0] * mx + normals[j, 1] * my + normals[j, 2] * mz, -1.0), 1.0))
+            acc += w * a * a
+        out[n] = math.sqrt(acc / total)
+
+
+@_jit
 def grid_distances_gradients(values, origin, spacing, points, distance, gradient):
     """Signed distance and its unit gradient (central differences over half a cell).
 

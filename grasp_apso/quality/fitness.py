@@ -27,6 +27,19 @@ in [0, 1] (weights 0.20, 0.15, 0.35, 0.20, 0.10), with
 - ``factor``: the GRG shape parameter factor's term (see :mod:`grasp_apso.search.grg`): how well
   the wrist matches the approach of the object's shape class, in [0, 1].
 
+Contacts on an ill-defined normal (issue 13, part 6; ``docs/algorithm.md``, "Uncertain
+contacts"): a contact ``i`` whose normal spread ``u_i`` (rad, the model's
+:class:`~grasp_apso.geometry.normal_spread.NormalSpreadGrid` at the contact point: large at an
+edge, a corner or a rim) approaches the friction cone's half-angle ``alpha = atan(mu)`` is
+*uncertain* by ``e_i = clip((u_i - alpha / 2) / (alpha / 2), 0, 1)`` (0 below alpha / 2,
+1 from alpha on). With ``E = sum_i e_i`` over the contacts::
+
+    shape, balance, equilibrium  *=  1 - E / nc
+    count = (nc - E / 2 - 1) / 4          (an uncertain contact counts half)
+
+so the search steers toward contacts on well-defined patches. Where every ``e_i`` is 0
+the fitness is unchanged bit for bit.
+
 An *inactive* particle (nc < 2, or illegal: a blocked finger, a link penetrating the
 object beyond the tolerance, fingers colliding) scores below every active one but still
 points toward contact, so the simple PSO is not blind::
@@ -55,6 +68,10 @@ W_FACTOR = 0.10
 GAP_SCALE = 0.1
 #: Each contact carries at least this fraction of the mean share of the squeeze.
 MIN_SHARE = 0.25
+#: A contact is uncertain from this fraction of the friction cone's half-angle on ...
+UNCERTAIN_FROM = 0.5
+#: ... and fully uncertain at the half-angle itself; it then counts this much of a contact.
+UNCERTAIN_COUNT = 0.5
 
 
 @dataclass(frozen=True)
@@ -68,6 +85,21 @@ class FitnessTerms:
     equilibrium: np.ndarray
     count: np.ndarray
     factor: np.ndarray
+    #: (P,) float: the summed uncertainty E of the contacts (0 for well-defined normals).
+    uncertain: np.ndarray | None = None
+
+
+def contact_uncertainty(model: GraspModel, decoded: DecodedGrasps, mu: float) -> np.ndarray:
+    """Uncertainty ``e`` in [0, 1] of every fingertip contact (P, 5), 0 for fingers
+    without contact or a model without a spread grid: the normal spread ``u`` (rad) at the
+    contact point ramped from 0 at ``UNCERTAIN_FROM * atan(mu)`` to 1 at ``atan(mu)``."""
+    mask = decoded.contact
+    if model.spread is None:
+        return np.zeros(mask.shape)
+    spread = model.spread.spread(decoded.contact_points)
+    alpha = float(np.arctan(mu))
+    low = UNCERTAIN_FROM * alpha
+    return np.where(mask, np.clip((spread - low) / (alpha - low), 0.0, 1.0), 0.0)
 
 
 def evaluate(
@@ -101,7 +133,12 @@ def evaluate(
     # Collinear contacts balance without holding: scale by the polygon's regularity.
     regular = np.where(nc >= 3, np.clip(shape / 0.5, 0.0, 1.0), 0.5)  # shape = 1 - Q
     equilibrium = (1.0 - np.minimum(residual, 1.0)) * regular
-    count = (nc - 1) / 4.0
+    # Contacts on ill-defined normals (edges, corners, rims): see the module docstring.
+    uncertain = contact_uncertainty(model, decoded, mu).sum(axis=1)
+    if np.any(uncertain > 0.0):
+        reliable = 1.0 - uncertain / np.maximum(nc, 1)
+        shape, balance, equilibrium = shape * reliable, balance * reliable, equilibrium * reliable
+    count = (nc - UNCERTAIN_COUNT * uncertain - 1) / 4.0
     score = (
         W_SHAPE * shape + W_BALANCE * balance + W_EQUILIBRIUM * equilibrium
         + W_COUNT * count + W_FACTOR * factor
@@ -114,4 +151,5 @@ def evaluate(
     return FitnessTerms(
         fitness=fitness, active=active, shape=shape * nan, balance=balance * nan,
         equilibrium=equilibrium * nan, count=count * nan, factor=np.asarray(factor, dtype=float) * nan,
+        uncertain=uncertain * nan,
     )

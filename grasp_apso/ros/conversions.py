@@ -332,5 +332,5 @@ def progress_msg(stats: Any, request_id: str, algorithm: str, header: Header) ->
     msg.active_particles = int(stats.active_particles)
     msg.best_contacts = int(stats.best_contacts)
     msg.elapsed = float(stats.elapsed)
-    msg.distinct_candidates = int(getattr(stats, "distinct_candidates", 0) or 0)
+    msg.distinct_candidates = int(stats.distinct_candidates)
     return msg

@@ -27,7 +27,6 @@ Future completed from another thread does not wake the awaiting coroutine).
 from __future__ import annotations
 
 import hashlib
-import inspect
 import os
 import threading
 import time
@@ -45,6 +44,7 @@ from ..model import builtin as builtin_objects
 from ..model import mesh_files, objects
 from ..search.planner import GraspResult, plan, warm_up
 from . import database_answers
+from ..tools.summary import grasp_summary, grasp_verdict
 from .requests import PACKED, Job, packed_message
 
 __all__ = ["Outcome", "Worker", "OBJECT_CACHE_ENTRIES", "OBJECT_CACHE_BYTES", "TIMEOUT_GRACE"]
@@ -55,7 +55,6 @@ OBJECT_CACHE_BYTES = 256 * 1024 * 1024
 #: After plan_timeout in the planning stage, the swarm stops at its next iteration and
 #: the best grasp so far is verified; a reply is sent at the latest this much later.
 TIMEOUT_GRACE = 1.0
-_PLAN_TAKES_SCENE = "scene" in inspect.signature(plan).parameters
 
 
 @dataclass
@@ -320,16 +319,12 @@ class Worker:
                 self._hooks.on_result(job, stored)
                 return Outcome(True, stored.message, stored, source="database")
         job.stage = "preparation"
-        extra = {"scene": job.scene} if _PLAN_TAKES_SCENE else {}
         result = plan(obj, pose=job.pose, options=opts, rng=np.random.default_rng(job.seed), hand=job.hand,
                       progress=lambda stats: self._hooks.on_progress(job, stats),
-                      should_stop=lambda: self._should_stop(job), **extra)
+                      should_stop=lambda: self._should_stop(job), scene=job.scene)
         self._hooks.on_result(job, result)
         elapsed = time.perf_counter() - t0
-        n = len(result.candidates)
-        summary = (f"{result.n_contacts} contacts, fitness {result.fitness:.3f}, epsilon {result.epsilon:.4f}, "
-                   f"force closure {'yes' if result.force_closure else 'no'}, {n} candidate(s), "
-                   f"{result.iterations_run} of {opts.iterations} iterations in {elapsed:.2f} s")
+        summary = grasp_summary(result, opts.iterations, elapsed)
         goal = job.goal_handle
         if self._stopping.is_set() and result.cancelled:
             return Outcome(False, f"node shutting down: stopped after {summary}", result, True)
@@ -337,16 +332,13 @@ class Worker:
             return Outcome(False, f"cancelled: {summary}", result, cancelled=True)
         if job.timed_out and result.cancelled:
             return Outcome(False, f"{self._timeout_message(job)}: best so far {summary}", result)
+        verdict = grasp_verdict(result, opts.iterations, elapsed)  # the CLI's wording too
         if not result.valid:
-            why = [f"only {result.n_contacts} fingertip contacts"] if result.n_contacts < 2 else []
-            if not result.fcl.legal:
-                why.append("the collision check failed")
-            return Outcome(False, f"no valid grasp found ({', '.join(why) or 'illegal configuration'}): "
-                                  f"{summary}", result)
-        tail = f"; {result.candidates_message}" if result.candidates_message else ""
-        if n < opts.max_grasps and not tail:
-            tail = f"; {n} of the {opts.max_grasps} requested distinct candidates found"
-        return Outcome(True, f"grasp found: {summary}{tail}{'; ' + note if note else ''}", result)
+            return Outcome(False, verdict, result)
+        n = len(result.candidates)
+        if n < opts.max_grasps and not result.candidates_message:
+            verdict += f"; {n} of the {opts.max_grasps} requested distinct candidates found"
+        return Outcome(True, f"{verdict}{'; ' + note if note else ''}", result)
 
     def _warm_up(self) -> None:
         """Load the compiled kernels (never raises: a request would then report it)."""

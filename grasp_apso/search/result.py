@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry.collision import FclReport
+from ..model.hand import FINGER_NAMES
 from .swarm import IterationStats
 
 __all__ = ["Contact", "GraspCandidate", "GraspResult", "SIM_NOT_RUN", "SIM_DROPPED", "SIM_HELD"]
@@ -141,3 +142,16 @@ class GraspResult:
     @property
     def n_contacts(self) -> int:
         return len(self.contacts)
+
+    def touching_links(self, tolerance: float = 1e-4) -> np.ndarray:
+        """(5, 3) bool: links (proximal, middle, distal per finger) resting on the object
+        (python-fcl distance at most ``tolerance``, m), except the distal link of a finger
+        whose fingertip is a contact. Any True: not a pure fingertip grasp."""
+        distance = getattr(self.fcl, "link_distance", None)
+        if distance is None:
+            return np.zeros((5, 3), dtype=bool)
+        touching = np.asarray(distance, dtype=float) <= tolerance
+        for c in self.contacts:
+            if c.finger in FINGER_NAMES:
+                touching[FINGER_NAMES.index(c.finger), 2] = False
+        return touching

@@ -75,19 +75,6 @@ def _yes(flag: bool) -> str:
     return "yes" if flag else "no"
 
 
-def _touching_links(result: Any, tolerance: float = 1e-4) -> np.ndarray:
-    """(5, 3) bool: links resting on the object (python-fcl distance 0), except the distal
-    link of a finger whose fingertip is a contact (the rule of ``summary.touching_links``)."""
-    distance = getattr(getattr(result, "fcl", None), "link_distance", None)
-    if distance is None:
-        return np.zeros((5, 3), bool)
-    touching = np.asarray(distance, float) <= tolerance
-    for c in result.contacts:
-        if c.finger in FINGER_NAMES:
-            touching[FINGER_NAMES.index(c.finger), 2] = False
-    return touching
-
-
 def grasp_title(result: Any, object_name: str | None = None) -> str:
     """Two-line title: object and algorithm, then fitness, epsilon, closure, contacts."""
     fingers = ", ".join(c.finger for c in result.contacts) or "none"
@@ -298,7 +285,7 @@ def plot_grasp(
     if unknown or not views:
         raise ValueError(f"views: expected some of {sorted(_VIEW_LABELS)}, got {list(views)!r}")
     tris, com = _object_geometry(obj, _pose_of(result, pose))
-    touching = _touching_links(result)
+    touching = result.touching_links()
     grasp = _grasp_of(result, hand, touching)
     table = scene is not None and len(scene.planes) > 0
     fig = Figure(figsize=(5.9 * len(views), 6.4))

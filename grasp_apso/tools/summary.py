@@ -48,20 +48,11 @@ def _vec(v, fmt: str = "{:7.1f}") -> str:
 
 # ----------------------------------------------------------------------------- one wording
 def touching_links(result: GraspResult, tolerance: float = 1e-4) -> list[str]:
-    """Links other than the contact fingertips that touch the object (python-fcl distance 0).
-
-    The quality measures count fingertip contacts only; a link resting on the object makes
-    the real grasp partly an enveloping one.
-    """
-    distance = np.asarray(result.fcl.link_distance, float)
-    tips = {c.finger for c in result.contacts}
-    out = []
-    for f, k in np.argwhere(distance <= tolerance):
-        finger = FINGER_NAMES[f]
-        if k == 2 and finger in tips:
-            continue
-        out.append(f"{finger}_{LINK_NAMES[finger][k]}")
-    return out
+    """Names of the links other than the contact fingertips that touch the object
+    (:meth:`GraspResult.touching_links`). The quality measures count fingertip contacts
+    only; a link resting on the object makes the real grasp partly an enveloping one."""
+    return [f"{FINGER_NAMES[f]}_{LINK_NAMES[FINGER_NAMES[f]][k]}"
+            for f, k in np.argwhere(result.touching_links(tolerance))]
 
 
 def why_not_valid(result: GraspResult) -> str:
