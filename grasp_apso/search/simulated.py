@@ -21,7 +21,7 @@ __all__ = ["simulate_checked", "simulate_until_held", "SIMULATION_SPARE"]
 #: With ``simulate``, the selection verifies up to this many times ``max_grasps`` grasps,
 #: and simulates them best first until ``max_grasps`` held (bounded: at most that many
 #: simulations, about 0.2 s each).
-SIMULATION_SPARE = 2
+SIMULATION_SPARE = 3
 
 
 def simulate_checked(hand: HandModel, obj, pose: np.ndarray, checked: list, scene: Scene | None,
