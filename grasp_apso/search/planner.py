@@ -261,7 +261,8 @@ def _candidates_message(n: int, wanted: int, archived: int, considered: int, rej
     return (
         f"{n} of {wanted} grasps: the search kept {archived} distinct leaders (wrists at least the "
         f"orientation or position gap apart), {considered} of them distinct from the best grasp, "
-        f"{rejected} failed verification ({checks}); more particles or iterations find more"
+        f"{rejected} failed verification ({checks}) or were not force closure (only force-closure "
+        f"grasps are returned once one is found); more particles or iterations find more"
     )
 
 

@@ -16,7 +16,8 @@ fitness until ``max_grasps`` valid, *robust* force-closure grasps, pairwise dist
 found or the archive is exhausted (bounded by its capacity), then fills up with valid
 force-closure grasps whose closure rests on a contact with an ill-defined normal (an edge,
 a corner, a rim: :func:`grasp_apso.quality.robustness.robust_epsilon` is 0 for them), then
-with valid grasps that are not force closure. Ranking: :mod:`.ranking`.
+with (only when no force-closure grasp was found at all) the single best valid grasp that
+is not. Ranking: :mod:`.ranking`.
 
 Why robust: in the MuJoCo check (``bench/held_rate.py``) 6 of the 7 force-closure grasps
 that dropped had a robust epsilon of 0 (a contact at an edge or a rim whose normal spread,
@@ -229,6 +230,15 @@ def select_candidates(
         else:
             fragile.append(c)
     out = list(closure_found) + fragile[:max(0, want - len(closure_found))]
+    # Candidates are force closure (DESIGN: "all are valid and force closure when the
+    # search found that many; fewer are returned only when it did not"): a grasp that is
+    # not force closure is returned only as the single best grasp when the search found
+    # no force-closure grasp at all (the top-level fields need a grasp).
+    primary_ok = primary is not None and primary.valid
+    if out or primary_ok:
+        spare = []
+    else:
+        spare = spare[:1]
     for i in spare:
         if len(out) >= want:
             break
