@@ -213,7 +213,8 @@ def plan(
     if scene_obj is not None and not primary.scene_clear:
         primary, runner_up = None, False
     wanted = options.max_grasps * (SIMULATION_SPARE if options.simulate else 1)
-    others, considered, rejected = select_candidates(verifier, primary, archive, wanted)
+    others, considered, rejected = select_candidates(verifier, primary, archive, wanted,
+                                                     closure_only=not options.simulate)
     checked = ([primary] if primary is not None else []) + others
     if not checked:
         raise PlanningError(

@@ -175,14 +175,18 @@ class Verifier:
 
 def select_candidates(
     verifier: Verifier, primary: Checked | None, archive: LeaderArchive, max_grasps: int,
+    closure_only: bool = True,
 ) -> tuple[list[Checked], int, int]:
     """Verified, pairwise distinct candidates besides ``primary`` from the archive.
 
     The archive's entries are verified in descending fitness; an entry too close to the
     primary (or to an earlier accepted one) is skipped; the cheap checks run first (the
     decoder's legality, then epsilon), python-fcl only for those that pass. Stops once
-    ``max_grasps`` force-closure grasps (the primary included) are found; then valid
-    grasps that are not force closure fill up the list. Bounded by the archive size.
+    ``max_grasps`` force-closure grasps (the primary included) are found (robust ones
+    first, then fragile ones). ``closure_only`` (without the simulation): a grasp that is
+    not force closure is added only when neither the primary nor any archive entry is
+    valid and force closure, and then only one; otherwise (the simulation will judge)
+    valid grasps that are not force closure fill up the list. Bounded by the archive size.
 
     Returns
     -------
@@ -234,10 +238,12 @@ def select_candidates(
     # search found that many; fewer are returned only when it did not"): a grasp that is
     # not force closure is returned only as the single best grasp when the search found
     # no force-closure grasp at all (the top-level fields need a grasp).
+    # With the simulation (``closure_only`` False) the held ones are chosen in MuJoCo,
+    # which judges grasps that are not force closure by the epsilon measure too.
     primary_ok = primary is not None and primary.valid
-    if out or primary_ok:
+    if closure_only and (out or primary_ok):
         spare = []
-    else:
+    elif closure_only:
         spare = spare[:1]
     for i in spare:
         if len(out) >= want:
