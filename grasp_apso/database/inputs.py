@@ -19,12 +19,12 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
 from ..errors import ObjectError, UsageError
+from ..model.mesh_files import file_format, read_bytes
 from ..model.objects import MESH_FORMATS
 from ..model.poses import pose_to_matrix
 
@@ -175,20 +175,6 @@ def read_source(path: str, max_bytes: int) -> tuple[bytes, str]:
         ``mesh_uri: ...``: unknown extension, missing, not a file, unreadable, empty or
         larger than ``max_bytes``.
     """
-    ext = Path(path).suffix.lower().lstrip(".")
-    if ext not in MESH_FORMATS:
-        raise ObjectError(f"mesh_uri: unknown format '.{ext}' (expected {', '.join(MESH_FORMATS)}): {path}")
-    if not os.path.exists(path):
-        raise ObjectError(f"mesh_uri: file not found: {path}")
-    if not os.path.isfile(path):
-        raise ObjectError(f"mesh_uri: not a regular file: {path}")
-    try:
-        with open(path, "rb") as handle:
-            data = handle.read(max_bytes + 1)
-    except OSError as exc:
-        raise ObjectError(f"mesh_uri: cannot read file ({exc.strerror or exc}): {path}") from None
-    if len(data) > max_bytes:
-        raise ObjectError(f"mesh_uri: file exceeds the limit of {max_bytes} bytes: {path}")
-    if not data:
-        raise ObjectError(f"mesh_uri: file is empty: {path}")
+    file_format(path)  # the same checks and messages as the node's mesh files
+    data = read_bytes(path, path, max_bytes)
     return data, hashlib.sha256(data).hexdigest()

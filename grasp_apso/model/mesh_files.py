@@ -32,7 +32,7 @@ from ..errors import ObjectError
 from .mesh_checks import DEFAULT_MAX_TRIANGLES, check_limit
 from .objects import MESH_FORMATS, GraspObject, from_arrays
 
-__all__ = ["DEFAULT_MAX_BYTES", "PathLike", "from_file", "resolve"]
+__all__ = ["DEFAULT_MAX_BYTES", "PathLike", "file_format", "from_file", "read_bytes", "resolve"]
 
 #: Default limit on the size of a mesh file, bytes.
 DEFAULT_MAX_BYTES: int = 50_000_000
@@ -110,7 +110,7 @@ def resolve(path: PathLike, allowed_dir: PathLike | None = None) -> str:
     return _resolve_inside(_uri_to_path(path), allowed_dir)
 
 
-def _file_format(path: str, shown: str | None = None) -> str:
+def file_format(path: str, shown: str | None = None) -> str:
     """Lower-case extension of ``path`` (no dot) if it is in :data:`MESH_FORMATS`."""
     ext = os.path.splitext(path)[1].lower()
     if ext.lstrip(".") not in MESH_FORMATS:
@@ -121,7 +121,7 @@ def _file_format(path: str, shown: str | None = None) -> str:
     return ext.lstrip(".")
 
 
-def _read_bytes(real: str, shown: str, max_bytes: int) -> bytes:
+def read_bytes(real: str, shown: str, max_bytes: int) -> bytes:
     """Read a whole file of at most ``max_bytes`` bytes.
 
     Parameters
@@ -236,10 +236,10 @@ def from_file(
     requested = _uri_to_path(path)
     said = shown if shown is not None else requested
     real = _resolve_inside(requested, allowed_dir, said)
-    file_type = _file_format(requested, said)
+    file_type = file_format(requested, said)
     if on_stage is not None:
         on_stage("reading")
-    data = _read_bytes(real, said, int(max_bytes))
+    data = read_bytes(real, said, int(max_bytes))
     loaded = _parse_mesh(data, file_type, said)
     stem = os.path.splitext(os.path.basename(requested))[0] or "mesh"
     if on_stage is not None:
