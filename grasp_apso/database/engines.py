@@ -121,7 +121,8 @@ class LocalEngine:
         return len(self._futures)
 
     def submit(self, task: ObjectTask) -> None:
-        assert self._pool is not None, "start() first"
+        if self._pool is None:
+            raise RuntimeError("LocalEngine.submit: call start() first")
         self._futures[self._pool.submit(run_task, task)] = task
 
     def next_done(self, timeout: float) -> list[tuple[ObjectTask, Outcome]]:
