@@ -21,7 +21,7 @@ from typing import Any, Callable, Generic, Hashable, TypeVar
 
 import numpy as np
 
-__all__ = ["BoundedCache", "CacheStats", "approximate_nbytes"]
+__all__ = ["BoundedCache", "CacheStats", "PerThreadCache", "approximate_nbytes"]
 
 V = TypeVar("V")
 
@@ -137,3 +137,32 @@ class BoundedCache(Generic[V]):
         """Entries, bytes and hit/miss/eviction counters."""
         with self._lock:
             return CacheStats(len(self._items), self._nbytes, self._hits, self._misses, self._evictions)
+
+
+class PerThreadCache(Generic[V]):
+    """Values derived from an object (an fcl model of a hand, of a BVH ...), kept per
+    thread and keyed by the object's identity: python-fcl collision objects are moved with
+    ``setTransform`` between queries, so two threads must never share one.
+
+    The source object is held with its value, so an ``id`` cannot be reused while its
+    entry lives; at most ``max_entries`` per thread (the oldest is dropped first).
+    """
+
+    def __init__(self, max_entries: int = 8) -> None:
+        if max_entries < 1:
+            raise ValueError("max_entries must be positive")
+        self.max_entries = int(max_entries)
+        self._local = threading.local()
+
+    def get(self, source: Any, build: Callable[[Any], V]) -> V:
+        """The value derived from ``source`` in this thread, built once with ``build(source)``."""
+        cache = getattr(self._local, "items", None)
+        if cache is None:
+            cache = self._local.items = {}
+        entry = cache.get(id(source))
+        if entry is None or entry[0] is not source:
+            if len(cache) >= self.max_entries:
+                cache.pop(next(iter(cache)))
+            entry = cache[id(source)] = (source, build(source))
+        return entry[1]
+

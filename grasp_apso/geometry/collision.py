@@ -18,6 +18,7 @@ import fcl
 import numpy as np
 import trimesh
 
+from ..cache import PerThreadCache
 from . import kernels
 
 FINGER_PAIRS: tuple[tuple[int, int], ...] = tuple(combinations(range(5), 2))
@@ -174,17 +175,12 @@ def _cached_capsule(radius: float, length: float, tf: fcl.Transform, slot: int) 
     return obj
 
 
+_MESH_OBJECTS: "PerThreadCache[fcl.CollisionObject]" = PerThreadCache(max_entries=8)
+
+
 def _mesh_object(bvh: fcl.BVHModel) -> fcl.CollisionObject:
     """The per-thread cached fcl object of a BVH at the identity."""
-    cache = getattr(_LOCAL, "meshes", None)
-    if cache is None:
-        cache = _LOCAL.meshes = {}
-    entry = cache.get(id(bvh))
-    if entry is None or entry[0] is not bvh:
-        if len(cache) >= 8:
-            cache.pop(next(iter(cache)))
-        entry = cache[id(bvh)] = (bvh, fcl.CollisionObject(bvh, fcl.Transform()))
-    return entry[1]
+    return _MESH_OBJECTS.get(bvh, lambda b: fcl.CollisionObject(b, fcl.Transform()))
 
 
 def verify_with_fcl(

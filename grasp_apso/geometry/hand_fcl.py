@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import fcl
 import numpy as np
 
+from ..cache import PerThreadCache
 from ..errors import InputError
 from ..model.hand import N_FINGERS, HandModel
 from ..model.scene import BOX, CYLINDER, SPHERE, Scene
@@ -190,16 +191,11 @@ def _frame_with_z(n: np.ndarray) -> np.ndarray:
 _LOCAL = threading.local()
 
 
+_HANDS: "PerThreadCache[_HandGeometry]" = PerThreadCache(max_entries=8)
+
+
 def _hand_geometry(hand: HandModel) -> _HandGeometry:
-    cache = getattr(_LOCAL, "hands", None)
-    if cache is None:
-        cache = _LOCAL.hands = {}
-    entry = cache.get(id(hand))
-    if entry is None or entry[0] is not hand:
-        if len(cache) >= 8:
-            cache.pop(next(iter(cache)))
-        entry = cache[id(hand)] = (hand, _HandGeometry(hand))
-    return entry[1]
+    return _HANDS.get(hand, _HandGeometry)
 
 
 def _scene_geometry(scene: Scene) -> _SceneGeometry:
