@@ -39,7 +39,7 @@ if str(REPO_ROOT) not in sys.path:
 import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
-from grasp_apso import sdf as sdf_module  # noqa: E402
+from grasp_apso.geometry import sdf as sdf_module  # noqa: E402
 from grasp_apso.geometry.decoder import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model  # noqa: E402
 from grasp_apso.model.hand import load_hand  # noqa: E402
 from grasp_apso.model.objects import from_arrays

@@ -194,6 +194,18 @@ def support_function(points, directions, out, argmax):
 # closing the fingers
 # --------------------------------------------------------------------------------------
 @_jit
+def _world_plane(rot, trans, planes_palm, p, f, plane):
+    """Finger row f's flexion plane (base, ex, ey; palm frame, planes_palm (F, 3, 3)) moved
+    into the object frame by particle p's wrist (rot (P, 3, 3), trans (P, 3)): plane (3, 3)."""
+    for a in range(3):
+        for i in range(3):
+            acc = trans[p, i] if a == 0 else 0.0
+            for j in range(3):
+                acc += rot[p, i, j] * planes_palm[f, a, j]
+            plane[a, i] = acc
+
+
+@_jit
 def _segments(lengths, finger, ratio, distal, proximal, seg):
     """Planar link vectors (u, v) of a finger at flexions (distal, proximal): seg (3, 2)."""
     phi0 = proximal
@@ -278,12 +290,7 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
         f = rows[k]
         p = f // N_FINGERS
         finger = f % N_FINGERS
-        for a in range(3):  # base, ex, ey into the object frame
-            for i in range(3):
-                acc = trans[p, i] if a == 0 else 0.0
-                for j in range(3):
-                    acc += rot[p, i, j] * planes[f, a, j]
-                plane[a, i] = acc
+        _world_plane(rot, trans, planes, p, f, plane)  # base, ex, ey into the object frame
         d0 = distal0[f]
         p0 = proximal0[f]
         dspan = distal_span[f]

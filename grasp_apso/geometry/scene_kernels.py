@@ -36,7 +36,7 @@ import math
 import numba
 import numpy as np
 
-from .kernels import N_FINGERS, _grid_distance, _segments
+from .kernels import N_FINGERS, _grid_distance, _segments, _world_plane
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -220,12 +220,7 @@ def finger_scene_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pr
             out[k] = gap
             continue
         # the open pre-shape along the approach
-        for a in range(3):
-            for i in range(3):
-                acc = trans[p, i] if a == 0 else 0.0
-                for j in range(3):
-                    acc += rot[p, i, j] * planes_palm[f, a, j]
-                plane[a, i] = acc
+        _world_plane(rot, trans, planes_palm, p, f, plane)
         _segments(lengths, finger, ratio, distal0[f], proximal0[f], seg)
         for m in range(k_pts):
             u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
@@ -377,12 +372,7 @@ def approach_object_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0,
         p = f // N_FINGERS
         finger = f % N_FINGERS
         zx, zy, zz = rot[p, 0, 2], rot[p, 1, 2], rot[p, 2, 2]
-        for a in range(3):
-            for i in range(3):
-                acc = trans[p, i] if a == 0 else 0.0
-                for j in range(3):
-                    acc += rot[p, i, j] * planes_palm[f, a, j]
-                plane[a, i] = acc
+        _world_plane(rot, trans, planes_palm, p, f, plane)
         _segments(lengths, finger, ratio, distal0[f], proximal0[f], seg)
         best = max_step
         for m in range(coeff.shape[1]):
