@@ -33,11 +33,10 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 30 + 140))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 import rclpy  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 
-from node_helpers import DISCOVERY_TIMEOUT, LineReader, identity_pose, ros_env, wait_future  # noqa: E402
+from node_helpers import DISCOVERY_TIMEOUT, LineReader, SpinningNode, identity_pose, ros_env, wait_future  # noqa: E402
 
 RESULTS = os.path.join(ROOT, 'bench', 'results', 'node_workers.json')
 SERVICE = '/grasp_apso/plan_grasp'
@@ -53,27 +52,19 @@ def _request(i: int) -> PlanGrasp.Request:
     return req
 
 
-def _caller(context, index: int, rounds: int, out: dict, start: threading.Event) -> None:
-    node = rclpy.create_node(f'bench_workers_caller_{os.getpid()}_{index}', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    try:
-        client = node.create_client(PlanGrasp, SERVICE)
-        if not client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT):
+def _caller(context, index: int, rounds: int, out: dict, start: threading.Barrier) -> None:
+    with SpinningNode(context, f'bench_workers_caller_{os.getpid()}_{index}', num_threads=1) as spun:
+        client = spun.node.create_client(PlanGrasp, SERVICE)
+        found = client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT)
+        start.wait(timeout=DISCOVERY_TIMEOUT + 60.0)  # every caller found the service: the clock starts
+        if not found:
             out[index] = ('no service', 0)
             return
-        start.wait(timeout=60.0)
         ok = 0
         for r in range(rounds):
             res = wait_future(client.call_async(_request(100 * index + r)), 300.0)
             ok += bool(res is not None and res.success)
         out[index] = ('done', ok)
-    finally:
-        executor.shutdown(timeout_sec=5.0)
-        spinner.join(timeout=5.0)
-        node.destroy_node()
 
 
 def measure(workers: int, rounds: int) -> dict:
@@ -85,26 +76,21 @@ def measure(workers: int, rounds: int) -> dict:
     out = LineReader(node.stdout)
     context = rclpy.context.Context()
     rclpy.init(context=context)
-    warm = rclpy.create_node('bench_workers_warm', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(warm)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    warm = SpinningNode(context, 'bench_workers_warm', num_threads=1).start()
     try:
-        client = warm.create_client(PlanGrasp, SERVICE)
+        client = warm.node.create_client(PlanGrasp, SERVICE)
         if not client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT):
             raise RuntimeError('node did not come up:\n' + out.text())
         for i in range(2):  # kernels loaded, every object's grid cached
             for name_index in range(len(OBJECTS)):
                 wait_future(client.call_async(_request(name_index + i)), 300.0)
         results: dict = {}
-        start = threading.Event()
+        start = threading.Barrier(CALLERS + 1)
         threads = [threading.Thread(target=_caller, args=(context, i, rounds, results, start)) for i in range(CALLERS)]
         for t in threads:
             t.start()
-        time.sleep(1.0)  # let every caller discover the service before the clock starts
+        start.wait(timeout=DISCOVERY_TIMEOUT + 60.0)
         t0 = time.perf_counter()
-        start.set()
         for t in threads:
             t.join(timeout=900.0)
         wall = time.perf_counter() - t0
@@ -112,9 +98,7 @@ def measure(workers: int, rounds: int) -> dict:
         return {'workers': workers, 'requests': CALLERS * rounds, 'planned': planned, 'wall_s': wall,
                 'requests_per_s': planned / wall}
     finally:
-        executor.shutdown(timeout_sec=5.0)
-        spinner.join(timeout=5.0)
-        warm.destroy_node()
+        warm.close()
         rclpy.try_shutdown(context=context)
         node.send_signal(signal.SIGINT)
         try:
