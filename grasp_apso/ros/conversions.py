@@ -256,16 +256,22 @@ def grasp_msg(candidate: Any, header: Header) -> Grasp:
     msg.approach_direction = Vector3Stamped(header=header, vector=_vector(candidate.approach))
     msg.approach_distance = float(candidate.approach_distance)
     msg.grasp_quality = float(candidate.grasp_quality)
-    msg.fitness = float(candidate.fitness)
-    msg.epsilon_quality = float(candidate.epsilon)
-    msg.force_closure = bool(candidate.force_closure)
-    msg.contact_points = [_point(c.position) for c in candidate.contacts]
-    msg.contact_normals = [_vector(c.normal) for c in candidate.contacts]
-    msg.contact_fingers = [str(c.finger) for c in candidate.contacts]
+    _fill_quality_and_contacts(msg, candidate)
     msg.sim_result = int(candidate.sim_result)
     msg.sim_max_shift = float(candidate.sim_max_shift)
     msg.sim_max_turn = float(candidate.sim_max_turn)
     return msg
+
+
+def _fill_quality_and_contacts(msg: Any, grasp: Any) -> None:
+    """The fields a ``Grasp`` and the reply's top level share: ``fitness``,
+    ``epsilon_quality``, ``force_closure`` and the contacts (planning frame)."""
+    msg.fitness = float(grasp.fitness)
+    msg.epsilon_quality = float(grasp.epsilon)
+    msg.force_closure = bool(grasp.force_closure)
+    msg.contact_points = [_point(c.position) for c in grasp.contacts]
+    msg.contact_normals = [_vector(c.normal) for c in grasp.contacts]
+    msg.contact_fingers = [str(c.finger) for c in grasp.contacts]
 
 
 def fill_result(msg: Any, result: Any, header: Header, planning_time: float | None = None,
@@ -299,12 +305,7 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
     best = candidates[0] if candidates else result
     msg.configuration = joint_state(best.joint_positions, header)
     msg.wrist_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(best.wrist_pose))
-    msg.fitness = float(best.fitness)
-    msg.epsilon_quality = float(best.epsilon)
-    msg.force_closure = bool(best.force_closure)
-    msg.contact_points = [_point(c.position) for c in best.contacts]
-    msg.contact_normals = [_vector(c.normal) for c in best.contacts]
-    msg.contact_fingers = [str(c.finger) for c in best.contacts]
+    _fill_quality_and_contacts(msg, best)
     msg.grasps = [grasp_msg(c, header) for c in candidates]
     msg.grasp_source = source
     msg.iterations_run = int(result.iterations_run)
