@@ -439,7 +439,6 @@ def test_grasps_prints_the_candidate_table_and_small_multiples(tmp_path, capsys)
 
 
 def test_simulate_reports_held_or_dropped_per_candidate(tmp_path, capsys):
-    pytest.importorskip("mujoco")
     out, doc = _json_run(capsys, tmp_path, "--object", "sphere", "--simulate", "--grasps", "2", "--no-plots")
     cands = doc["results"]["apso"]["candidates"]
     assert cands and all(c["sim_result"] in (0, 1) for c in cands)

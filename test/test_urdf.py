@@ -16,7 +16,7 @@ import pytest
 from grasp_apso.model.hand import FINGER_NAMES, JOINT_NAMES, load_hand, wrist_rotation
 from grasp_apso.model.urdf import hand_to_urdf, rotation_to_rpy, write_urdf
 
-yourdfpy = pytest.importorskip("yourdfpy")
+import yourdfpy  # noqa: E402  (a pinned test dependency: a missing install must fail, not skip)
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "urdf" / "apso_paper_hand.urdf"
