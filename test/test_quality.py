@@ -523,3 +523,37 @@ def test_batch_shape_validation():
         force_balance_residual(np.full((2, F, 3), np.inf), mask, np.zeros(3))
     with pytest.raises(ValueError, match="^points"):
         polygon_shape_q([["a"]], mask)
+
+
+def test_cheap_outside_test_never_rejects_a_force_closure_grasp():
+    """The non-negative least squares screen before qhull: on random contact sets (half
+    of them force closure) it rejects only sets whose hull misses the origin, and most
+    of those (it is what makes screening runner-up grasps cheap)."""
+    from scipy.spatial import ConvexHull
+
+    from grasp_apso.quality import measures
+
+    rng = np.random.default_rng(11)
+    rejected_outside = outside = 0
+    for _ in range(400):
+        k = int(rng.integers(2, 6))
+        pts = rng.normal(size=(k, 3))
+        pts /= np.linalg.norm(pts, axis=1, keepdims=True)
+        if rng.random() < 0.5:  # contacts on one side only: rarely force closure
+            pts[:, 0] = np.abs(pts[:, 0]) + 0.2
+        normals = pts + rng.normal(scale=0.2, size=pts.shape)
+        wrenches = measures._cone_wrenches(pts * 0.03, normals / np.linalg.norm(normals, axis=1, keepdims=True),
+                                           np.zeros(3), 0.5, 8, 0.03)
+        try:
+            eq = ConvexHull(wrenches).equations
+            origin_inside = bool(np.all(eq[:, -1] < 0.0))
+        except Exception:  # flat wrench set: the origin is not strictly inside
+            origin_inside = False
+        may = measures._origin_may_be_inside(wrenches)
+        if origin_inside:
+            assert may
+        else:
+            outside += 1
+            rejected_outside += not may
+    assert outside > 100
+    assert rejected_outside / outside > 0.9

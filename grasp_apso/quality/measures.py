@@ -54,6 +54,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import nnls
 from scipy.spatial import ConvexHull
 
 from . import kernels as quality_kernels
@@ -326,6 +327,31 @@ def _cone_wrenches(
     return np.concatenate([forces, torques], axis=-1).reshape(-1, 6)
 
 
+#: Least distance-like residual (dimensionless) of :func:`_origin_may_be_inside` that
+#: proves the origin outside the wrench hull; a round-off residual is about 1e-15.
+OUTSIDE_RESIDUAL = 1e-9
+
+
+def _origin_may_be_inside(wrenches: NDArray[np.float64]) -> bool:
+    """False when the origin is certainly outside the convex hull of ``wrenches`` (n, 6).
+
+    The cheap test before qhull (about 25 us against several ms for 40 wrenches in 6-D):
+    non-negative least squares of ``sum_i l_i w_i = 0`` with ``sum_i l_i = 1`` appended
+    as a row. A convex combination reaching the origin gives residual 0; an origin at
+    distance ``delta`` from the hull leaves a residual of at least ``delta / sqrt(1 +
+    delta^2)``. Most runner-up grasps the planner screens are not force closure and stop
+    here; the qhull verdict is unchanged (epsilon needs the hull anyway).
+    """
+    a = np.vstack([wrenches.T, np.ones(len(wrenches))])
+    b = np.zeros(7)
+    b[6] = 1.0
+    try:
+        _, residual = nnls(a, b)
+    except (RuntimeError, ValueError):  # no convergence: let qhull decide
+        return True
+    return bool(residual <= OUTSIDE_RESIDUAL)
+
+
 def epsilon_quality(
     points: ArrayLike,
     normals: ArrayLike,
@@ -412,6 +438,8 @@ def epsilon_quality(
         return 0.0, False
 
     wrenches = _cone_wrenches(pts, nrm, c, float(mu), edges_i, scale)
+    if not _origin_may_be_inside(wrenches):
+        return 0.0, False  # the hull below would find the origin outside too
     try:
         hull = ConvexHull(wrenches)
     except (QhullError, ValueError):
