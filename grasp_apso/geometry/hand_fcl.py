@@ -142,11 +142,15 @@ class _HandGeometry:
         self.full = [fcl.CollisionObject(g, fcl.Transform()) for g in shapes(0.0)]
         self.shrunk = [fcl.CollisionObject(g, fcl.Transform()) for g in shapes(OBJECT_TOLERANCE)]
 
-    def place(self, local: list[tuple[np.ndarray, np.ndarray]], wrist: np.ndarray, shrunk: bool = False) -> list:
+    def place(self, local: list[tuple[np.ndarray, np.ndarray]], wrist: np.ndarray, shrunk: bool = False,
+              parts=None) -> list:
+        """The parts' fcl objects (all of them) with the parts ``parts`` (indices, default
+        all) moved to ``local`` under ``wrist``."""
         objs = self.shrunk if shrunk else self.full
         rw, tw = wrist[:3, :3], wrist[:3, 3]
-        for obj, (r, c) in zip(objs, local):
-            obj.setTransform(fcl.Transform(rw @ r, rw @ c + tw))
+        for k in range(len(local)) if parts is None else parts:
+            r, c = local[k]
+            objs[k].setTransform(fcl.Transform(rw @ r, rw @ c + tw))
         return objs
 
 
@@ -343,36 +347,45 @@ def approach_report(
     scene_geo = None if scene.is_empty else _scene_geometry(scene)
     approach = grasp[:3, 2]
     min_scene, min_obj, clear = math.inf, math.inf, True
-    # From the grasp back to the pre-grasp. A translation by t changes a distance by at
-    # most t, so a pose whose lower bound (the last measured distance minus the travel
-    # since) cannot lower the minimum, nor break the clearance or touch the object, is
-    # not measured: the minima stay exact, with a few fcl queries instead of n + 1.
-    last_scene = last_obj = None  # (distance, remaining) of the last measured pose
+    # From the grasp back to the pre-grasp. A translation by t changes a part's distance
+    # by at most t, so a part whose lower bound (its last measured distance minus the
+    # travel since) can neither lower a minimum nor break the clearance nor touch the
+    # object is not measured at that pose: the minima stay exact over the n + 1 poses,
+    # and the parts far from the scene and the object are measured a few times only.
+    n_parts = len(local)
+    last_scene = np.full(n_parts, -math.inf)  # per part: distance at its last measurement
+    last_obj = np.full(n_parts, -math.inf)
+    at_scene = np.zeros(n_parts)  # ... and the ``remaining`` there
+    at_obj = np.zeros(n_parts)
     for i in range(n, -1, -1):
         remaining = dist * (1.0 - i / n) if n else 0.0
-        need_scene = scene_geo is not None and (
-            last_scene is None or last_scene[0] - abs(remaining - last_scene[1]) < min_scene)
-        need_obj = obj is not None and (
-            last_obj is None or not 0.0 < last_obj[0] - abs(remaining - last_obj[1]) >= min_obj)
-        if not (need_scene or need_obj):
+        scene_parts = obj_parts = np.empty(0, dtype=np.int64)
+        if scene_geo is not None:
+            scene_parts = np.flatnonzero(last_scene - np.abs(remaining - at_scene) < min_scene)
+        if obj is not None:
+            bound = last_obj - np.abs(remaining - at_obj)
+            obj_parts = np.flatnonzero(~((bound > 0.0) & (bound >= min_obj)))
+        if not (len(scene_parts) or len(obj_parts)):
             continue
         wrist = grasp.copy()
         wrist[:3, 3] -= remaining * approach
-        parts = geo.place(local, wrist)
-        if need_scene:
-            d = _min_distance(parts, scene_geo.objects(wrist[:3, 3]))
-            last_scene = (d, remaining)
-            min_scene = min(min_scene, d)
-            clear &= d >= clear_min
-        if need_obj:
-            d, touching = _object_contact(parts, obj)
-            last_obj = (d, remaining)
+        parts = geo.place(local, wrist, parts=np.union1d(scene_parts, obj_parts))
+        if len(scene_parts):
+            others = scene_geo.objects(wrist[:3, 3])
+            for k in scene_parts:
+                d = _min_distance((parts[k],), others)
+                last_scene[k], at_scene[k] = d, remaining
+                min_scene = min(min_scene, d)
+                clear &= d >= clear_min
+        for k in obj_parts:
+            d, touching = _object_contact((parts[k],), obj)
+            last_obj[k], at_obj[k] = d, remaining
             min_obj = min(min_obj, d)
             if touching:
                 if remaining > CONTACT_ZONE + 1e-12:
                     clear = False
                 else:
-                    shrunk = geo.place(local, wrist, shrunk=True)
-                    clear &= not _object_contact(shrunk, obj)[1]
+                    shrunk = geo.place(local, wrist, shrunk=True, parts=(k,))
+                    clear &= not _object_contact((shrunk[k],), obj)[1]
     return ApproachReport(clear=bool(clear), min_scene_distance=float(min_scene),
                           min_object_distance=float(min_obj), steps=n + 1)
