@@ -308,7 +308,7 @@ def reference_closing(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     blocked = np.zeros((n, 5), dtype=bool)
     for p in range(n):
         for f in range(5):
-            sweep = [clearance(p, f, s, contacts_module._SWEEP_POINTS, model.sweep_radii).min() for s in steps]
+            sweep = [clearance(p, f, s, contacts_module.SWEEP_POINTS, model.sweep_radii).min() for s in steps]
             blocked[p, f] = sweep[0] < -settings.max_penetration
             hits = np.flatnonzero(np.array(sweep) <= 0.0)
             if len(hits) == 0:
@@ -321,7 +321,7 @@ def reference_closing(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
                 for _ in range(settings.refine_steps):
                     denom = c_lo - c_hi
                     mid = lo + np.clip(c_lo / (denom if abs(denom) > 1e-12 else 1.0), 0.05, 0.95) * (hi - lo)
-                    c_mid = clearance(p, f, mid, contacts_module._SWEEP_POINTS, model.sweep_radii).min()
+                    c_mid = clearance(p, f, mid, contacts_module.SWEEP_POINTS, model.sweep_radii).min()
                     if c_mid > 0.0:
                         c_hi = 0.5 * c_hi if side > 0 else c_hi
                         lo, c_lo, side = mid, c_mid, 1
@@ -329,7 +329,7 @@ def reference_closing(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
                         c_lo = 0.5 * c_lo if side < 0 else c_lo
                         hi, c_hi, side = mid, c_mid, -1
                 s_stop = lo
-            final = clearance(p, f, s_stop, contacts_module._FINAL_POINTS, model.point_radii)
+            final = clearance(p, f, s_stop, contacts_module.FINAL_POINTS, model.point_radii)
             contact[p, f] = (final[-1] <= settings.tolerance and not blocked[p, f]
                              and final.min() >= -settings.max_penetration)
             s_out[p, f] = s_stop if contact[p, f] else 0.0

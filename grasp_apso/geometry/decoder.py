@@ -34,8 +34,14 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from . import kernels, scene_kernels
+from . import kernels
 from .collision import finger_collisions
+from .link_points import (
+    CLEAR_OF_PALM, FINAL_COEFF, FINAL_POINTS, JOINT_INDEX, NON_TIP_LINKS, SWEEP_COEFF, SWEEP_POINTS,
+)
+from .scene_margins import (
+    approach_object_gaps, finger_grasp_margins, finger_path_margins, palm_scene_margins, trace_approaches,
+)
 from ..model.hand import N_FINGERS, HandModel, wrist_rotation
 from ..model.particle import LAYOUT
 from .contact_settings import ContactSettings
@@ -45,46 +51,6 @@ from .sdf import SignedDistanceGrid, cached_sdf_grid
 #: Particle size and standoff index (named slices: :data:`grasp_apso.model.particle.LAYOUT`).
 STANDOFF_INDEX = LAYOUT.standoff
 N_DIMS = LAYOUT.dims
-
-# Points along the links checked while closing: (link, fraction). The last one is the
-# fingertip pad centre. The finger base (link 0, fraction 0) does not move while closing
-# and is checked at the final pose only.
-# Spacing about 11 mm for 9 mm radii: a capsule may dip up to about 2 mm into the surface
-# between two spheres while sweeping; the dense final check catches that.
-_SWEEP_POINTS = np.array(
-    [[0, 0.25], [0, 0.5], [0, 0.75], [0, 1.0], [1, 1 / 3], [1, 2 / 3], [1, 1.0],
-     [2, 1 / 3], [2, 2 / 3], [2, 1.0]]
-)
-# Final check of the closed pose: base, joints, and spheres every ~4 mm (the capsule is
-# covered to within 0.3 mm); the last point is the pad.
-_FINAL_POINTS = np.array(
-    [[0, 0.0]] + [[0, f] for f in np.linspace(1 / 12, 1.0, 12)]
-    + [[1, f] for f in np.linspace(1 / 8, 1.0, 8)] + [[2, f] for f in np.linspace(1 / 7, 1.0, 7)]
-)
-_JOINT_INDEX = [0, 12, 20, 27]  # base, PIP, DIP, tip in _FINAL_POINTS
-_NON_TIP_LINKS = slice(1, 18)     # proximal link and first 5/8 of the middle link (not the knuckle)
-_CLEAR_OF_PALM = slice(7, 28)     # from the middle of the proximal link to the pad
-
-
-def _link_coefficients(points: np.ndarray) -> np.ndarray:
-    """(3, K): a point (link k, fraction f) is sum_j C[j] * segment_j of the planar chain."""
-    coeff = np.zeros((3, len(points)))
-    for col, (link, frac) in enumerate(points):
-        coeff[: int(link), col] = 1.0
-        coeff[int(link), col] = frac
-    return coeff
-
-
-_SWEEP_COEFF = _link_coefficients(_SWEEP_POINTS)
-_FINAL_COEFF = _link_coefficients(_FINAL_POINTS)
-# The approach's object check traces every other final point and the pad.
-_APPROACH_INDEX = np.r_[np.arange(0, len(_FINAL_POINTS) - 1, 2), len(_FINAL_POINTS) - 1]
-_APPROACH_COEFF = np.ascontiguousarray(_FINAL_COEFF[:, _APPROACH_INDEX])
-
-
-def _APPROACH_RADII_OF(model) -> np.ndarray:
-    return np.ascontiguousarray(model.point_radii[_APPROACH_INDEX])
-
 
 @dataclass(frozen=True)
 class GraspModel:
@@ -103,6 +69,11 @@ class GraspModel:
     point_radii: np.ndarray = field(repr=False)
     sweep_radii: np.ndarray = field(repr=False)
     support_points: np.ndarray = field(repr=False)
+    #: (2, 3) m: the object's bounding box (least and greatest corner, object frame).
+    object_box: np.ndarray = field(repr=False)
+    #: (4,) m: the hand's radius at the base, PIP, DIP and tip of a finger (the largest
+    #: of the capsules and the pad ending there): a finger's plane distance is exact there.
+    joint_radii: np.ndarray = field(repr=False)
     #: Hand data as the compiled kernels read it (float64, C-contiguous): link lengths
     #: (5, 3) m, capsule radii of the proximal, middle and distal links (3,) m, palm box.
     link_lengths: np.ndarray = field(repr=False)
@@ -122,21 +93,6 @@ class GraspModel:
     @property
     def dims(self) -> int:
         return N_DIMS
-
-
-#: Largest step (m) of the sampled approach path.
-APPROACH_STEP = 0.005
-#: Scene gaps are computed up to this far beyond the clearance (m): guidance range.
-SCENE_HORIZON = 0.02
-#: The link spheres cover the capsules to within about 0.3 mm, edges of boxes and
-#: cylinders a little less (measured against dense sampling): finger gaps are reduced
-#: by this (m) so that the check stays conservative.
-FINGER_COVER_MARGIN = 0.001
-#: Along the approach the open hand may touch the object only in the last this many m
-#: before the grasp (``hand_fcl.CONTACT_ZONE``); elsewhere a finger whose link spheres
-#: come within APPROACH_TOUCH of it makes the particle illegal (scene_margin < 0).
-APPROACH_CONTACT_ZONE = 0.010
-APPROACH_TOUCH = 0.0005
 
 
 def with_scene(model: GraspModel, scene, clearance: float, approach_distance: float) -> GraspModel:
@@ -172,21 +128,26 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     spread = cached_normal_spread_grid(obj.mesh, grid, obj.mesh_hash, padding=0.025)
     lower = np.concatenate([hand.lower, [0.0]])
     upper = np.concatenate([hand.upper, [settings.standoff_max]])
-    final_radii = np.array([hand.link_radii[int(k)] for k, _ in _FINAL_POINTS])
-    sweep_radii = np.array([hand.link_radii[int(k)] for k, _ in _SWEEP_POINTS])
+    final_radii = np.array([hand.link_radii[int(k)] for k, _ in FINAL_POINTS])
+    sweep_radii = np.array([hand.link_radii[int(k)] for k, _ in SWEEP_POINTS])
     final_radii[-1] = sweep_radii[-1] = hand.pad_radius
     link_lengths, capsule_radii, palm_center, palm_half = (
         np.array(v, dtype=np.float64, order="C")
         for v in (hand.link_lengths, [*hand.link_radii[:2], hand.pad_radius], hand.palm_center,
                   hand.palm_half_extents)
     )
-    for arr in (lower, upper, final_radii, sweep_radii, link_lengths, capsule_radii, palm_center, palm_half):
+    object_box = np.array(obj.mesh.bounds, dtype=np.float64, order="C")
+    r = hand.link_radii
+    joint_radii = np.array([r[0], max(r[0], r[1]), max(r[1], r[2]), max(r[2], hand.pad_radius)], dtype=np.float64)
+    for arr in (lower, upper, final_radii, sweep_radii, link_lengths, capsule_radii, palm_center, palm_half,
+                object_box, joint_radii):
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
         point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
         link_lengths=link_lengths, capsule_radii=capsule_radii, palm_center=palm_center,
-        palm_half_extents=palm_half, spread=spread,
+        palm_half_extents=palm_half, object_box=object_box, joint_radii=joint_radii,
+        spread=spread,
     )
 
 
@@ -245,9 +206,13 @@ class DecodedGrasps:
     scene_margin : (P, 5) float or None, m
         Least distance of each finger to the scene (closed at the grasp, open along the
         approach) minus the clearance: negative = too close (illegal). None without a
-        scene; read at most :data:`SCENE_HORIZON`.
+        scene; read at most :data:`grasp_apso.geometry.scene_margins.SCENE_HORIZON`.
     palm_scene_margin : (P,) float or None, m
         The same for the palm box (grasp and approach).
+    approach_traced : (P, 5) bool or None
+        Fingers whose open approach past the object is in ``scene_margin``: only the
+        particles otherwise legal with 2 or more contacts are traced (the others are
+        rejected or regenerated whatever their approach).
     """
 
     closed: np.ndarray
@@ -265,6 +230,7 @@ class DecodedGrasps:
     palm_depth: np.ndarray
     scene_margin: np.ndarray | None = None
     palm_scene_margin: np.ndarray | None = None
+    approach_traced: np.ndarray | None = None
 
     @property
     def n_contacts(self) -> np.ndarray:
@@ -386,24 +352,20 @@ def decode(
     p_span = hand.upper[LAYOUT.proximal] - proximal0
 
     r = len(rows)
-    s_r = np.empty(r)
-    blocked_r = np.empty(r, dtype=bool)
-    contact_r = np.empty(r, dtype=bool)
-    pts = np.empty((r, len(_FINAL_POINTS), 3))
-    clearance = np.empty((r, len(_FINAL_POINTS)))
-    tip_gap_r = kernels.close_fingers(
-        sdf._values64, sdf._origin64, float(sdf.spacing), rot, trans, planes, model.link_lengths,
-        float(hand.coupling_ratio), np.ascontiguousarray(distal0).reshape(-1),
-        np.ascontiguousarray(proximal0).reshape(-1), np.ascontiguousarray(d_span).reshape(-1),
-        np.ascontiguousarray(p_span).reshape(-1), _SWEEP_COEFF, model.sweep_radii, _FINAL_COEFF,
-        model.point_radii, settings.coarse_steps, settings.refine_steps, settings.max_penetration,
-        settings.tolerance, rows, s_r, blocked_r, contact_r, pts, clearance,
-    )
+    path_margin = closing = None
+    if model.scene is not None:
+        # The open hand's way in first: a finger whose pre-shape comes within the
+        # clearance of the scene on the approach is illegal however it closes, so it is
+        # not closed (GRG regenerates it, the swarm's particle is illegal anyway).
+        path_margin = finger_path_margins(model, rows, rot, trans, planes, distal0, proximal0)
+        closing = path_margin >= 0.0
+    s_r, blocked_r, contact_r, pts, clearance, tip_gap_r = _close_rows(
+        model, rows, rot, trans, planes, distal0, proximal0, d_span, p_span, closing)
     palm_depth_r = np.empty(r)
-    kernels.palm_depths(pts, _CLEAR_OF_PALM.start, _CLEAR_OF_PALM.stop, rows, rot, trans, model.palm_center,
+    kernels.palm_depths(pts, CLEAR_OF_PALM.start, CLEAR_OF_PALM.stop, rows, rot, trans, model.palm_center,
                         model.palm_half_extents, palm_depth_r)
     surface_r, normals_r = sdf.closest_surface_point(pts[:, -1, :])
-    link_contact_r = (clearance[:, _NON_TIP_LINKS].min(axis=-1) <= settings.link_contact_tolerance) & ~blocked_r
+    link_contact_r = (clearance[:, NON_TIP_LINKS].min(axis=-1) <= settings.link_contact_tolerance) & ~blocked_r
     if settings.allow_link_contacts:
         link_contact_r[:] = False
     # Fingers without a fingertip contact take no part in the precision grasp: they are
@@ -415,19 +377,16 @@ def decode(
         "tip_gap": tip_gap_r, "contact": contact_r, "blocked": blocked_r,
         "penetration": np.maximum(0.0, -clearance.min(axis=-1)), "link_contact": link_contact_r,
         "contact_points": surface_r, "contact_normals": normals_r, "palm_depth": palm_depth_r,
-        "joints": pts[:, _JOINT_INDEX, :],
+        "joints": pts[:, JOINT_INDEX, :],
     }
     if model.scene is not None:
-        margin = _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts)
-        # The open hand's approach past the object is traced only for finger rows that
-        # are otherwise legal (the costly part of the scene check: a finger already
-        # illegal is rejected or regenerated whatever its approach).
-        trace = ((margin >= 0.0) & ~blocked_r & ~link_contact_r
-                 & (per_row["penetration"] <= settings.max_penetration))
-        if trace.any():
-            margin[trace] = np.minimum(margin[trace], _approach_object_gaps(
-                model, rows[trace], rot, trans, planes, distal0, proximal0) - APPROACH_TOUCH)
+        margin = path_margin
+        closed_rows = np.flatnonzero(closing)
+        if closed_rows.size:
+            margin[closed_rows] = np.minimum(margin[closed_rows], finger_grasp_margins(
+                model, rows[closed_rows], rot, pts[closed_rows]))
         per_row["scene_margin"] = margin
+        per_row["approach_traced"] = np.zeros(r, dtype=bool)
     if reuse is None:
         out = {name: value.reshape((n, N_FINGERS) + value.shape[1:]) for name, value in per_row.items()}
         flexions = flex_r.reshape(n, N_FINGERS, 2)
@@ -455,59 +414,34 @@ def decode(
     else:
         palm_pen = _palm_penetration(model, wrist)
     if model.scene is not None:
-        out["palm_scene_margin"] = _palm_scene_gaps(model, rot, trans) if reuse is None else reuse.palm_scene_margin
-    return DecodedGrasps(closed=closed, wrist=wrist, finger_collision=collide, palm_penetration=palm_pen, **out)
+        out["palm_scene_margin"] = palm_scene_margins(model, wrist) if reuse is None else reuse.palm_scene_margin
+    decoded = DecodedGrasps(closed=closed, wrist=wrist, finger_collision=collide, palm_penetration=palm_pen, **out)
+    if model.scene is not None:
+        trace_approaches(model, decoded, rot, trans, planes, distal0, proximal0)
+    return decoded
 
 
-def _scene_arrays(model: GraspModel) -> tuple:
-    sc = model.scene
-    return (sc["planes"], sc["box_inv"], sc["box_half"], sc["sphere_center"], sc["sphere_radius"],
-            sc["cyl_inv"], sc["cyl_radius"], sc["cyl_half_height"])
-
-
-def _finger_scene_gaps(model, rows, rot, trans, planes, distal0, proximal0, pts) -> np.ndarray:
-    """Scene margin (R,) m of the finger rows: closed pose ``pts`` (R, K, 3) at the grasp,
-    open pre-shape along the approach (:func:`grasp_apso.geometry.scene_kernels.finger_scene_gaps`)."""
-    n_steps = max(2, int(np.ceil(model.approach_distance / APPROACH_STEP)) + 1)
-    gaps = np.empty(len(rows))
-    scene_kernels.finger_scene_gaps(
-        rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
-        np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
-        _FINAL_COEFF, model.point_radii, pts, model.approach_distance, n_steps,
-        model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps,
-    )
-    return gaps - model.scene_clearance - FINGER_COVER_MARGIN
-
-
-def palm_scene_margins(model: GraspModel, wrist: np.ndarray) -> np.ndarray:
-    """Scene margin (P,) m (least distance minus the clearance, negative: too close) of
-    the palm box at wrists (P, 4, 4) (object frame), swept over the approach; ``inf``
-    without a scene. Cheap (no fingers): GRG screens wrists with it before decoding."""
-    if model.scene is None:
-        return np.full(len(wrist), np.inf)
-    return _palm_scene_gaps(model, np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3]))
-
-
-def _approach_object_gaps(model, rows, rot, trans, planes, distal0, proximal0) -> np.ndarray:
-    """Clearance (R,) m of the open pre-shape of the finger rows from the object along the
-    approach, before the last :data:`APPROACH_CONTACT_ZONE` (0 = touching)."""
-    gaps = np.empty(len(rows))
-    sdf = model.sdf
-    scene_kernels.approach_object_gaps(
-        rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
-        np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
-        _APPROACH_COEFF, _APPROACH_RADII_OF(model), sdf._values64, sdf._origin64, float(sdf.spacing),
-        model.approach_distance, APPROACH_CONTACT_ZONE, 0.002, 0.01, gaps,
-    )
-    return gaps
-
-
-def _palm_scene_gaps(model, rot, trans) -> np.ndarray:
-    """Scene margin (P,) m of the palm box swept over the approach."""
-    gaps = np.empty(len(rot))
-    scene_kernels.palm_scene_gaps(rot, trans, model.palm_center, model.palm_half_extents, model.approach_distance,
-                                  model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps)
-    return gaps - model.scene_clearance
+def _close_rows(model, rows, rot, trans, planes, distal0, proximal0, d_span, p_span, closing) -> tuple:
+    """Close the finger rows (:func:`grasp_apso.geometry.kernels.close_fingers`); rows
+    with ``closing`` (R,) bool False stay open (:func:`~grasp_apso.geometry.kernels.open_fingers`).
+    Returns per row: s (R,), blocked (R,), contact (R,), points (R, K, 3), clearance (R, K), tip gap (R,)."""
+    hand, sdf, settings = model.hand, model.sdf, model.settings
+    r = len(rows)
+    out = (np.empty(r), np.empty(r, dtype=bool), np.empty(r, dtype=bool), np.empty((r, len(FINAL_POINTS), 3)),
+           np.empty((r, len(FINAL_POINTS))), np.empty(r))
+    grid = (sdf._values64, sdf._origin64, float(sdf.spacing), rot, trans, planes, model.link_lengths,
+            float(hand.coupling_ratio), np.ascontiguousarray(distal0).reshape(-1),
+            np.ascontiguousarray(proximal0).reshape(-1))
+    close = np.arange(r) if closing is None else np.flatnonzero(closing)
+    if close.size:
+        kernels.close_fingers(
+            *grid, np.ascontiguousarray(d_span).reshape(-1), np.ascontiguousarray(p_span).reshape(-1),
+            SWEEP_COEFF, model.sweep_radii, FINAL_COEFF, model.point_radii, settings.coarse_steps,
+            settings.refine_steps, settings.max_penetration, settings.tolerance, rows[close], close, *out)
+    if close.size < r:
+        stay = np.flatnonzero(~closing)
+        kernels.open_fingers(*grid, FINAL_COEFF, rows[stay], stay, *out)
+    return out
 
 
 def warm_scene_kernels(model: GraspModel) -> None:
@@ -520,7 +454,12 @@ def warm_scene_kernels(model: GraspModel) -> None:
     theta = LAYOUT.finger_values(x)
     planes = np.ascontiguousarray(np.stack(model.hand.flexion_planes(theta[..., 2]), axis=-2).reshape(-1, 3, 3))
     rows = np.arange(N_FINGERS, dtype=np.int64)
-    _approach_object_gaps(model, rows, rot, trans, planes, theta[..., 0], theta[..., 1])
+    approach_object_gaps(model, rows, rot, trans, planes, theta[..., 0], theta[..., 1])
+    d_span = model.hand.upper[LAYOUT.distal] - theta[..., 0]
+    p_span = model.hand.upper[LAYOUT.proximal] - theta[..., 1]
+    pts = _close_rows(model, rows, rot, trans, planes, theta[..., 0], theta[..., 1], d_span, p_span,
+                      np.arange(N_FINGERS) % 2 == 0)[3]  # closes some rows, leaves the others open
+    finger_grasp_margins(model, rows, rot, pts)
 
 
 def _rows_to_decode(x: np.ndarray, reuse: DecodedGrasps | None, changed: np.ndarray | None) -> np.ndarray:

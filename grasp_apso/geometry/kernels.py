@@ -251,7 +251,7 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
                   distal0, proximal0, distal_span, proximal_span,
                   sweep_coeff, sweep_radii, final_coeff, final_radii,
                   coarse_steps, refine_steps, max_penetration, tolerance,
-                  rows, s_out, blocked, contact, points, clearance):
+                  rows, slots, s_out, blocked, contact, points, clearance, tip_gap):
     """Close finger rows onto the surface and check their closed pose.
 
     Each finger moves ``theta(s) = pre + s * span`` for s in [0, 1]; a coarse sweep of
@@ -271,11 +271,12 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
         link points as combinations of the three planar segments, and their radii;
         the last final point is the fingertip pad
     rows : (R,) int -- the rows to close (all F, or the fingers GRG regenerated)
-    Outputs (written, one entry per row of ``rows``): s_out (R,) closing parameter of the
-    returned pose; blocked (R,) bool, deeper than max_penetration at the pre-shape;
-    contact (R,) bool; points (R, Kf, 3) and clearance (R, Kf) of the returned pose.
-    Returns the tip gaps (R,): clearance of the pad where the closing stopped (before a
-    finger without contact is re-opened).
+    slots : (R,) int -- where each row's results go in the outputs
+    Outputs (written at ``slots``, the others untouched): s_out closing parameter of the
+    returned pose; blocked (bool), deeper than max_penetration at the pre-shape; contact
+    (bool); points (., Kf, 3) and clearance (., Kf) of the returned pose; tip_gap, the
+    clearance of the pad where the closing stopped (before a finger without contact is
+    re-opened).
     """
     seg = np.empty((3, 2))
     plane = np.empty((3, 3))
@@ -283,11 +284,11 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
     sweep_clearance = np.empty((1, sweep_coeff.shape[1]))
     pad_point = np.empty((1, 1, 3))
     pad_clearance = np.empty((1, 1))
-    tip_gap = np.empty(rows.shape[0])
     last = final_coeff.shape[1] - 1
     inv_steps = 1.0 / (coarse_steps - 1)
-    for k in range(rows.shape[0]):
-        f = rows[k]
+    for row in range(rows.shape[0]):
+        f = rows[row]
+        k = slots[row]
         p = f // N_FINGERS
         finger = f % N_FINGERS
         _world_plane(rot, trans, planes, p, f, plane)  # base, ex, ey into the object frame
@@ -384,7 +385,39 @@ def close_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rat
                 _segments(lengths, finger, ratio, d0, p0, seg)
                 _link_clearances(values, grid_origin, spacing, plane, seg, final_coeff, final_radii,
                                  points, clearance, k)
-    return tip_gap
+
+
+@_jit
+def open_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, ratio, distal0, proximal0,
+                 final_coeff, rows, slots, s_out, blocked, contact, points, clearance, tip_gap):
+    """Finger rows left at their pre-shape, not closed: the decoder found them illegal
+    before closing (their open hand comes too close to the scene). Outputs as
+    :func:`close_fingers`: s_out 0, no contact; the points of the pre-shape; the tip gap
+    (the pad's clearance there); the other clearances, not needed for an illegal
+    finger, are written +inf (no penetration, no link contact, not blocked).
+
+    Arguments as :func:`close_fingers`.
+    """
+    seg = np.empty((3, 2))
+    plane = np.empty((3, 3))
+    last = final_coeff.shape[1] - 1
+    inv = 1.0 / spacing
+    for row in range(rows.shape[0]):
+        f = rows[row]
+        k = slots[row]
+        _world_plane(rot, trans, planes, f // N_FINGERS, f, plane)
+        _segments(lengths, f % N_FINGERS, ratio, distal0[f], proximal0[f], seg)
+        for m in range(final_coeff.shape[1]):
+            u = final_coeff[0, m] * seg[0, 0] + final_coeff[1, m] * seg[1, 0] + final_coeff[2, m] * seg[2, 0]
+            v = final_coeff[0, m] * seg[0, 1] + final_coeff[1, m] * seg[1, 1] + final_coeff[2, m] * seg[2, 1]
+            for i in range(3):
+                points[k, m, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+            clearance[k, m] = np.inf
+        tip_gap[k] = _grid_distance(values, grid_origin[0], grid_origin[1], grid_origin[2], inv, spacing,
+                                    points[k, last, 0], points[k, last, 1], points[k, last, 2])
+        s_out[k] = 0.0
+        contact[k] = False
+        blocked[k] = False
 
 
 @_jit

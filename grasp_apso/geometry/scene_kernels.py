@@ -13,16 +13,20 @@ Two postures are checked for every particle:
 Exact where cheap, conservative (the distance is never over-estimated) elsewhere:
 
 - planes: a sphere's or a box's distance to a half-space is linear along the path, so
-  the path's least distance is at one of its ends (exact);
+  the path's least distance is at one of its ends (exact); a finger is its joints (the
+  least distance of a chain of capsules to a plane is at a capsule's end);
 - spheres: the distance from a sphere's centre to the path segment (exact);
-- boxes and cylinders: finger spheres are sampled along the path every ``step`` m (at
-  most 5 mm), and the gap a swept sphere may reach between two samples,
-  ``r - sqrt(r^2 - (step / 2)^2)``, is subtracted. The palm swept along its own normal
-  is one longer box; its distance to a box or a cylinder is bounded from below by the
+- boxes and cylinders: the distance is convex along the path, bounded from below
+  within 0.1 mm by the tangents at the ends of a shrinking bracket
+  (:mod:`grasp_apso.geometry.convex_distance`). The palm swept along its own normal is
+  one longer box; its distance to a box or a cylinder is bounded from below by the
   largest gap between their projections over a set of separating axes (the boxes' face
   normals, the pairwise cross products, the line between the centres);
-- a finger or a palm whose bounding sphere, swept along the path, stays farther than
-  ``horizon`` from an obstacle's bounding sphere skips that obstacle (reads ``horizon``).
+- culling: a finger whose joints' ball, a group of link spheres whose ball, or a palm
+  whose bounding sphere stays farther than ``horizon`` from an obstacle skips it (and
+  reads ``horizon``);
+- the object along the approach: each link sphere's path is sphere-traced in the
+  object's distance grid (:func:`approach_object_gaps`).
 
 Arrays follow :meth:`grasp_apso.model.scene.Scene.packed` (object frame, float64,
 C-contiguous). The kernels release the GIL and are cached on disk, as
@@ -36,34 +40,10 @@ import math
 import numba
 import numpy as np
 
-from .kernels import N_FINGERS, _grid_distance, _segments, _world_plane
+from . import convex_distance
+from .kernels import _CELL_MARGIN, N_FINGERS, _grid_distance, _segments, _world_plane
 
 _jit = numba.njit(cache=True, nogil=True)
-
-
-@_jit
-def _box_point(inv, half, x, y, z):
-    """Signed distance (m) of a point to a box (``inv`` world -> box, half sizes)."""
-    lx = inv[0, 0] * x + inv[0, 1] * y + inv[0, 2] * z + inv[0, 3]
-    ly = inv[1, 0] * x + inv[1, 1] * y + inv[1, 2] * z + inv[1, 3]
-    lz = inv[2, 0] * x + inv[2, 1] * y + inv[2, 2] * z + inv[2, 3]
-    qx = abs(lx) - half[0]
-    qy = abs(ly) - half[1]
-    qz = abs(lz) - half[2]
-    ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-    return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-
-
-@_jit
-def _cylinder_point(inv, radius, half_height, x, y, z):
-    """Signed distance (m) of a point to a cylinder (axis = local z)."""
-    lx = inv[0, 0] * x + inv[0, 1] * y + inv[0, 2] * z + inv[0, 3]
-    ly = inv[1, 0] * x + inv[1, 1] * y + inv[1, 2] * z + inv[1, 3]
-    lz = inv[2, 0] * x + inv[2, 1] * y + inv[2, 2] * z + inv[2, 3]
-    qr = math.sqrt(lx * lx + ly * ly) - radius
-    qz = abs(lz) - half_height
-    ox, oz = max(qr, 0.0), max(qz, 0.0)
-    return math.sqrt(ox * ox + oz * oz) + min(max(qr, qz), 0.0)
 
 
 @_jit
@@ -80,40 +60,19 @@ def _point_segment(px, py, pz, ax, ay, az, dx, dy, dz, length2):
 
 
 @_jit
-def _inv_center(inv, out):
-    """Centre (world) of a primitive from its world -> local transform."""
-    for i in range(3):
-        out[i] = -(inv[0, i] * inv[0, 3] + inv[1, i] * inv[1, 3] + inv[2, i] * inv[2, 3])
+def _inv_center(inv):
+    """Centre (x, y, z) m of a primitive (world) from its world -> local transform."""
+    return (-(inv[0, 0] * inv[0, 3] + inv[1, 0] * inv[1, 3] + inv[2, 0] * inv[2, 3]),
+            -(inv[0, 1] * inv[0, 3] + inv[1, 1] * inv[1, 3] + inv[2, 1] * inv[2, 3]),
+            -(inv[0, 2] * inv[0, 3] + inv[1, 2] * inv[1, 3] + inv[2, 2] * inv[2, 3]))
 
 
 @_jit
-def _spheres_path_gap(q, radii, count, zx, zy, zz, length, n_steps, horizon,
-                      planes, box_inv, box_half, sphere_center, sphere_radius,
-                      cyl_inv, cyl_radius, cyl_half):
-    """Least gap (m) of spheres q[:count] (centres, object frame), radii, moved from
-    q to q - length * z (``length`` 0: the spheres at q only), to the scene; at most
-    ``horizon``."""
-    best = horizon
-    # bounding sphere of the set, for culling the obstacles
-    cx = 0.0
-    cy = 0.0
-    cz = 0.0
-    for m in range(count):
-        cx += q[m, 0]
-        cy += q[m, 1]
-        cz += q[m, 2]
-    cx /= count
-    cy /= count
-    cz /= count
-    bound = 0.0
-    rmax = 0.0
-    for m in range(count):
-        d = math.sqrt((q[m, 0] - cx) ** 2 + (q[m, 1] - cy) ** 2 + (q[m, 2] - cz) ** 2) + radii[m]
-        bound = max(bound, d)
-        rmax = max(rmax, radii[m])
+def _planes_path_gap(q, radii, count, zx, zy, zz, length, planes, best):
+    """Least gap (m) of spheres q[:count], radii, moved from q to q - length * z, to the
+    support planes (K, 4), or ``best`` when farther: a gap to a half-space is linear
+    along the path, so its least is at an end (exact)."""
     dx, dy, dz = -length * zx, -length * zy, -length * zz
-    length2 = length * length
-    # planes: linear along the path, least at an end
     for k in range(planes.shape[0]):
         nx, ny, nz, d0 = planes[k, 0], planes[k, 1], planes[k, 2], planes[k, 3]
         shift = min(0.0, nx * dx + ny * dy + nz * dz)
@@ -121,73 +80,148 @@ def _spheres_path_gap(q, radii, count, zx, zy, zz, length, n_steps, horizon,
             g = nx * q[m, 0] + ny * q[m, 1] + nz * q[m, 2] + d0 + shift - radii[m]
             if g < best:
                 best = g
+    return best
+
+
+#: Link spheres per culling group of :func:`_spheres_path_gap` (consecutive spheres of a
+#: finger: a group's bounding sphere is a few centimetres across).
+CULL_GROUP = 7
+
+
+@_jit
+def _spheres_path_gap(q, radii, count, zx, zy, zz, length, horizon,
+                      planes, box_inv, box_half, sphere_center, sphere_radius,
+                      cyl_inv, cyl_radius, cyl_half, gc, gb):
+    """Least gap (m) of spheres q[:count] (centres, object frame), radii, moved from
+    q to q - length * z (``length`` 0: the spheres at q only), to the scene; at most
+    ``horizon``.
+
+    Obstacles are culled per group of :data:`CULL_GROUP` consecutive spheres: a group
+    whose bounding sphere stays farther than the least gap found so far is skipped.
+    gc (G, 3), gb (G,) : scratch for the groups' bounding spheres, G >= count / CULL_GROUP."""
+    best = horizon
+    dx, dy, dz = -length * zx, -length * zy, -length * zz
+    length2 = length * length
+    best = _planes_path_gap(q, radii, count, zx, zy, zz, length, planes, best)
+    n_box = box_inv.shape[0]
+    n_obst = n_box + cyl_inv.shape[0]
+    if sphere_center.shape[0] + n_obst == 0:
+        return best
+    # bounding spheres of the groups
+    n_groups = (count + CULL_GROUP - 1) // CULL_GROUP
+    for g in range(n_groups):
+        lo, hi = g * CULL_GROUP, min(count, (g + 1) * CULL_GROUP)
+        gc[g, 0] = gc[g, 1] = gc[g, 2] = gb[g] = 0.0
+        for m in range(lo, hi):
+            for i in range(3):
+                gc[g, i] += q[m, i]
+        for i in range(3):
+            gc[g, i] /= hi - lo
+        for m in range(lo, hi):
+            gb[g] = max(gb[g], math.sqrt((q[m, 0] - gc[g, 0]) ** 2 + (q[m, 1] - gc[g, 1]) ** 2
+                                         + (q[m, 2] - gc[g, 2]) ** 2) + radii[m])
     # spheres: exact distance to the path segment
     for k in range(sphere_center.shape[0]):
         sx, sy, sz, sr = sphere_center[k, 0], sphere_center[k, 1], sphere_center[k, 2], sphere_radius[k]
-        if _point_segment(sx, sy, sz, cx, cy, cz, dx, dy, dz, length2) - sr - bound >= best:
-            continue
-        for m in range(count):
-            g = _point_segment(sx, sy, sz, q[m, 0], q[m, 1], q[m, 2], dx, dy, dz, length2) - sr - radii[m]
-            if g < best:
-                best = g
-    n_obst = box_inv.shape[0] + cyl_inv.shape[0]
-    if n_obst == 0:
-        return best
-    steps = n_steps if length > 0.0 else 1
-    delta = length / (steps - 1) if steps > 1 else 0.0
-    centre = np.empty(3)
-    c = 0
+        for g in range(n_groups):
+            if _point_segment(sx, sy, sz, gc[g, 0], gc[g, 1], gc[g, 2], dx, dy, dz, length2) - sr - gb[g] >= best:
+                continue
+            for m in range(g * CULL_GROUP, min(count, (g + 1) * CULL_GROUP)):
+                d = _point_segment(sx, sy, sz, q[m, 0], q[m, 1], q[m, 2], dx, dy, dz, length2) - sr - radii[m]
+                if d < best:
+                    best = d
+    # boxes and cylinders: the least along the path of a convex distance (tangent bound)
     for k in range(n_obst):
-        is_box = k < box_inv.shape[0]
+        is_box = k < n_box
+        c = 0 if is_box else k - n_box
         if is_box:
             inv = box_inv[k]
             hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
+            rad, hh = 0.0, 0.0
             reach = math.sqrt(hx * hx + hy * hy + hz * hz)
         else:
-            c = k - box_inv.shape[0]
             inv = cyl_inv[c]
-            reach = math.sqrt(cyl_radius[c] ** 2 + cyl_half[c] ** 2)
-        _inv_center(inv, centre)
-        if _point_segment(centre[0], centre[1], centre[2], cx, cy, cz, dx, dy, dz, length2) - reach - bound >= best:
-            continue
-        half_step = 0.5 * delta
-        for j in range(steps):
-            t = j / (steps - 1) if steps > 1 else 0.0
-            # The set's bounding sphere first: the distance is 1-Lipschitz, so no sphere
-            # of the set (nor its sweep to the next sample) is nearer than the centre's
-            # distance minus the bound and the half step.
-            x = cx + t * dx
-            y = cy + t * dy
-            z = cz + t * dz
-            if is_box:
-                g = _box_point(inv, box_half[k], x, y, z)
-            else:
-                g = _cylinder_point(inv, cyl_radius[c], cyl_half[c], x, y, z)
-            if g - bound - (half_step if steps > 1 else 0.0) >= best:
+            hx, hy, hz = 0.0, 0.0, 0.0
+            rad, hh = cyl_radius[c], cyl_half[c]
+            reach = math.sqrt(rad * rad + hh * hh)
+        ex, ey, ez = _inv_center(inv)
+        wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
+        wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
+        wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+        for g in range(n_groups):
+            # the obstacle's bounding sphere, then the group's bounding sphere: no sphere
+            # of the group comes nearer than either
+            if _point_segment(ex, ey, ez, gc[g, 0], gc[g, 1], gc[g, 2], dx, dy, dz, length2) - reach - gb[g] >= best:
                 continue
-            for m in range(count):
+            if convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, gc[g, 0], gc[g, 1], gc[g, 2], length,
+                           dx, dy, dz, wx, wy, wz, best + gb[g]) - gb[g] >= best:
+                continue
+            for m in range(g * CULL_GROUP, min(count, (g + 1) * CULL_GROUP)):
                 r = radii[m]
-                margin = r - math.sqrt(max(r * r - half_step * half_step, 0.0)) if half_step < r else half_step
-                x = q[m, 0] + t * dx
-                y = q[m, 1] + t * dy
-                z = q[m, 2] + t * dz
-                if is_box:
-                    g = _box_point(inv, box_half[k], x, y, z)
-                else:
-                    g = _cylinder_point(inv, cyl_radius[c], cyl_half[c], x, y, z)
-                g -= r + (margin if steps > 1 else 0.0)
-                if g < best:
-                    best = g
+                d = convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, q[m, 0], q[m, 1], q[m, 2], length,
+                                dx, dy, dz, wx, wy, wz, best + r) - r
+                if d < best:
+                    best = d
     return best
 
 
 @_jit
-def finger_scene_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, proximal0,
-                      coeff, radii, closed_points, approach_distance, n_steps, horizon,
-                      planes, box_inv, box_half, sphere_center, sphere_radius,
-                      cyl_inv, cyl_radius, cyl_half, out):
-    """Least scene gap of each finger row: its closed pose at the grasp and its open
-    pre-shape along the approach path.
+def _ball_clear(points, radii, count, zx, zy, zz, length, best, box_inv, box_half, sphere_center, sphere_radius,
+                cyl_inv, cyl_radius, cyl_half):
+    """True when the ball around spheres points[:count], radii, moved from them to
+    them - length * z, stays at least ``best`` (m) from every obstacle: then nothing
+    inside that ball comes nearer (a ball holding a finger's joints holds its capsules)."""
+    cx = cy = cz = 0.0
+    for m in range(count):
+        cx += points[m, 0]
+        cy += points[m, 1]
+        cz += points[m, 2]
+    cx /= count
+    cy /= count
+    cz /= count
+    bound = 0.0
+    for m in range(count):
+        bound = max(bound, math.sqrt((points[m, 0] - cx) ** 2 + (points[m, 1] - cy) ** 2
+                                     + (points[m, 2] - cz) ** 2) + radii[m])
+    dx, dy, dz = -length * zx, -length * zy, -length * zz
+    length2 = length * length
+    for k in range(sphere_center.shape[0]):
+        if _point_segment(sphere_center[k, 0], sphere_center[k, 1], sphere_center[k, 2], cx, cy, cz,
+                          dx, dy, dz, length2) - sphere_radius[k] - bound < best:
+            return False
+    n_box = box_inv.shape[0]
+    for k in range(n_box + cyl_inv.shape[0]):
+        is_box = k < n_box
+        c = 0 if is_box else k - n_box
+        if is_box:
+            inv = box_inv[k]
+            hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
+            rad, hh = 0.0, 0.0
+        else:
+            inv = cyl_inv[c]
+            hx, hy, hz = 0.0, 0.0, 0.0
+            rad, hh = cyl_radius[c], cyl_half[c]
+        wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
+        wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
+        wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+        if convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, cx, cy, cz, length, dx, dy, dz, wx, wy, wz,
+                       best + bound) - bound < best:
+            return False
+    return True
+
+
+@_jit
+def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, proximal0,
+                     coeff, radii, joint_cols, joint_radii, approach_distance, horizon,
+                     planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half,
+                     out):
+    """Least scene gap (m, at most ``horizon``) of each finger row's open pre-shape moved
+    along the approach, from the pre-grasp to the grasp (both included).
+
+    Against the support planes a finger is its joints: the least distance of a chain of
+    capsules (and the pad) to a plane is at a capsule's end, so the joints with the
+    largest radius of the parts ending there give it exactly. Against obstacles it is
+    its link spheres, once the ball around its joints comes near one.
 
     rows : (R,) int -- finger rows (particle * 5 + finger)
     rot (P, 3, 3), trans (P, 3) : palm frame in the object frame
@@ -195,42 +229,83 @@ def finger_scene_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pr
     lengths (5, 3) m, ratio -- link lengths, distal coupling ratio
     distal0, proximal0 : (F,) rad -- the pre-shape flexions
     coeff (3, K), radii (K,) m -- link spheres as combinations of the planar segments
-    closed_points : (R, K, 3) m, object frame -- the closed pose of each row
-    approach_distance : m; n_steps : samples along the path (>= 2)
-    horizon : m -- gaps are reported up to this
+    joint_cols (J,) int, joint_radii (J,) m -- the columns of the joints among them and
+        the radius of the hand at each joint
+    approach_distance : m
     out : (R,) m (written)
     """
     seg = np.empty((3, 2))
     plane = np.empty((3, 3))
     k_pts = coeff.shape[1]
+    n_joints = joint_cols.shape[0]
     q = np.empty((k_pts, 3))
+    joints = np.empty((n_joints, 3))
+    no_planes = planes[:0]
+    obstacles = sphere_center.shape[0] + box_inv.shape[0] + cyl_inv.shape[0] > 0
+    n_groups = (k_pts + CULL_GROUP - 1) // CULL_GROUP
+    gc = np.empty((n_groups, 3))
+    gb = np.empty(n_groups)
     for k in range(rows.shape[0]):
         f = rows[k]
         p = f // N_FINGERS
-        finger = f % N_FINGERS
         zx, zy, zz = rot[p, 0, 2], rot[p, 1, 2], rot[p, 2, 2]
-        # the closed pose at the grasp
-        for m in range(k_pts):
-            q[m, 0] = closed_points[k, m, 0]
-            q[m, 1] = closed_points[k, m, 1]
-            q[m, 2] = closed_points[k, m, 2]
-        gap = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, 0.0, 1, horizon, planes, box_inv, box_half,
-                                sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half)
-        if gap < 0.0:  # illegal at the grasp already: the approach is not traced
-            out[k] = gap
-            continue
-        # the open pre-shape along the approach
         _world_plane(rot, trans, planes_palm, p, f, plane)
-        _segments(lengths, finger, ratio, distal0[f], proximal0[f], seg)
-        for m in range(k_pts):
-            u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
-            v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
+        _segments(lengths, f % N_FINGERS, ratio, distal0[f], proximal0[f], seg)
+        for j in range(n_joints):
+            c = joint_cols[j]
+            u = coeff[0, c] * seg[0, 0] + coeff[1, c] * seg[1, 0] + coeff[2, c] * seg[2, 0]
+            v = coeff[0, c] * seg[0, 1] + coeff[1, c] * seg[1, 1] + coeff[2, c] * seg[2, 1]
             for i in range(3):
-                q[m, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
-        g = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, approach_distance, n_steps, min(gap, horizon),
-                              planes, box_inv, box_half, sphere_center, sphere_radius,
-                              cyl_inv, cyl_radius, cyl_half)
-        out[k] = min(gap, g)
+                joints[j, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+        g = _planes_path_gap(joints, joint_radii, n_joints, zx, zy, zz, approach_distance, planes, horizon)
+        if obstacles and not _ball_clear(joints, joint_radii, n_joints, zx, zy, zz, approach_distance, g,
+                                         box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius,
+                                         cyl_half):
+            for m in range(k_pts):
+                u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
+                v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
+                for i in range(3):
+                    q[m, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+            g = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, approach_distance, g,
+                                  no_planes, box_inv, box_half, sphere_center, sphere_radius,
+                                  cyl_inv, cyl_radius, cyl_half, gc, gb)
+        out[k] = g
+
+
+@_jit
+def finger_grasp_gaps(rows, rot, radii, joint_cols, joint_radii, points, horizon,
+                      planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half,
+                      out):
+    """Least scene gap (m, at most ``horizon``) of each finger row's closed pose at the
+    grasp: its link spheres ``points`` (R, K, 3) m, object frame, radii (K,) m (against
+    the planes its joints, as :func:`finger_path_gaps`).
+
+    rows : (R,) int; rot (P, 3, 3) -- for the rows' particles; out : (R,) m (written)
+    """
+    k_pts = points.shape[1]
+    n_joints = joint_cols.shape[0]
+    q = np.empty((k_pts, 3))
+    joints = np.empty((n_joints, 3))
+    no_planes = planes[:0]
+    obstacles = sphere_center.shape[0] + box_inv.shape[0] + cyl_inv.shape[0] > 0
+    n_groups = (k_pts + CULL_GROUP - 1) // CULL_GROUP
+    gc = np.empty((n_groups, 3))
+    gb = np.empty(n_groups)
+    for k in range(rows.shape[0]):
+        p = rows[k] // N_FINGERS
+        zx, zy, zz = rot[p, 0, 2], rot[p, 1, 2], rot[p, 2, 2]
+        for j in range(n_joints):
+            for i in range(3):
+                joints[j, i] = points[k, joint_cols[j], i]
+        g = _planes_path_gap(joints, joint_radii, n_joints, zx, zy, zz, 0.0, planes, horizon)
+        if obstacles and not _ball_clear(joints, joint_radii, n_joints, zx, zy, zz, 0.0, g, box_inv, box_half,
+                                         sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half):
+            for m in range(k_pts):
+                for i in range(3):
+                    q[m, i] = points[k, m, i]
+            g = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, 0.0, g, no_planes, box_inv, box_half,
+                                  sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half, gc, gb)
+        out[k] = g
 
 
 @_jit
@@ -321,12 +396,17 @@ def palm_scene_gaps(rot, trans, center, half_extents, approach_distance, horizon
                 rb = cyl_radius[c]
                 hh = cyl_half[c]
                 reach = math.sqrt(rb * rb + hh * hh)
-            _inv_center(inv, cb)
+            cb[0], cb[1], cb[2] = _inv_center(inv)
             for a in range(3):  # axes of the obstacle = rows of its inverse rotation
                 for i in range(3):
                     axes_b[i, a] = inv[a, i]
             dist_c = math.sqrt((cb[0] - pc[0]) ** 2 + (cb[1] - pc[1]) ** 2 + (cb[2] - pc[2]) ** 2)
             if dist_c - reach - palm_reach >= best:
+                continue
+            # the palm's bounding sphere against the obstacle itself (a large wall's own
+            # bounding sphere culls nothing)
+            if convex_distance.convex_value_slope(kind == 0, inv, hb[0], hb[1], hb[2], rb, hh, pc[0], pc[1], pc[2],
+                                   0.0, 0.0, 0.0)[0] - palm_reach >= best:
                 continue
             gap = _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh,
                               cb[0] - pc[0], cb[1] - pc[1], cb[2] - pc[2])
@@ -347,20 +427,59 @@ def palm_scene_gaps(rot, trans, center, half_extents, approach_distance, horizon
 
 
 @_jit
+def _object_distance_below(values, ox, oy, oz, inv, spacing, box_lo, box_hi, x, y, z):
+    """Distance (m) of a point to the object for tracing: never over-estimated far away,
+    0 or less inside it (not its depth).
+
+    The larger of two lower bounds of the distance outside the object: the grid's value
+    at the nearest point ``c`` of the grid's box minus ``|p - c|`` (the distance is
+    1-Lipschitz; inside the box that is the grid's value; outside it the grid's own
+    extension, :func:`grasp_apso.geometry.kernels._grid_distance`, over-estimates) and
+    the distance to the object's bounding box ``box_lo``, ``box_hi`` (3,) m.
+    Branch-free: about as fast as a plain look-up.
+    """
+    nx, ny, nz = values.shape
+    gx = (x - ox) * inv
+    gy = (y - oy) * inv
+    gz = (z - oz) * inv
+    cx = min(max(gx, 0.0), nx - 1 - _CELL_MARGIN)
+    cy = min(max(gy, 0.0), ny - 1 - _CELL_MARGIN)
+    cz = min(max(gz, 0.0), nz - 1 - _CELL_MARGIN)
+    outside = math.sqrt((gx - cx) ** 2 + (gy - cy) ** 2 + (gz - cz) ** 2) * spacing
+    i = int(cx)
+    j = int(cy)
+    k = int(cz)
+    fx = cx - i
+    fy = cy - j
+    fz = cz - k
+    c00 = values[i, j, k] + (values[i, j, k + 1] - values[i, j, k]) * fz
+    c01 = values[i, j + 1, k] + (values[i, j + 1, k + 1] - values[i, j + 1, k]) * fz
+    c10 = values[i + 1, j, k] + (values[i + 1, j, k + 1] - values[i + 1, j, k]) * fz
+    c11 = values[i + 1, j + 1, k] + (values[i + 1, j + 1, k + 1] - values[i + 1, j + 1, k]) * fz
+    c0 = c00 + (c01 - c00) * fy
+    c1 = c10 + (c11 - c10) * fy
+    dx = max(box_lo[0] - x, 0.0, x - box_hi[0])
+    dy = max(box_lo[1] - y, 0.0, y - box_hi[1])
+    dz = max(box_lo[2] - z, 0.0, z - box_hi[2])
+    return max(c0 + (c1 - c0) * fx - outside, math.sqrt(dx * dx + dy * dy + dz * dz))
+
+
+@_jit
 def approach_object_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, proximal0,
-                         coeff, radii, values, grid_origin, spacing, approach_distance, zone,
-                         min_step, max_step, out):
+                         coeff, radii, values, grid_origin, spacing, box_lo, box_hi, approach_distance,
+                         zone, min_step, cap, out):
     """Least clearance (m) of the open pre-shape from the object along the approach,
     excluding the last ``zone`` m before the grasp (where the fingers may touch), per
-    finger row; 0 is reported for a touch (not its depth), ``max_step`` at most.
+    finger row; 0 is reported for a touch (not its depth), ``cap`` at most.
 
-    The path of each link sphere is sphere-traced in the signed-distance grid from the
-    pre-grasp toward the grasp: a step of the clearance found (the distance is
-    1-Lipschitz), clamped to [min_step, max_step] m (the grid over-estimates far
-    outside its box; ``max_step`` keeps the tracing from jumping into it).
+    The path of each link sphere is sphere-traced from the pre-grasp toward the grasp:
+    a step of the clearance found (the distance is 1-Lipschitz), at least ``min_step``
+    m. Far from the object the distance is a lower bound (:func:`_object_distance_below`),
+    so that a long step never jumps into the object; most paths take one or two steps.
 
     rows, rot, trans, planes_palm, lengths, ratio, distal0, proximal0, coeff, radii:
-        as :func:`finger_scene_gaps`; values, grid_origin, spacing: the object's grid
+        as :func:`finger_scene_gaps`; values, grid_origin, spacing: the object's grid;
+        box_lo, box_hi : (3,) m, the object's bounding box
     out : (R,) m (written)
     """
     seg = np.empty((3, 2))
@@ -374,7 +493,7 @@ def approach_object_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0,
         zx, zy, zz = rot[p, 0, 2], rot[p, 1, 2], rot[p, 2, 2]
         _world_plane(rot, trans, planes_palm, p, f, plane)
         _segments(lengths, finger, ratio, distal0[f], proximal0[f], seg)
-        best = max_step
+        best = cap
         for m in range(coeff.shape[1]):
             u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
             v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
@@ -385,12 +504,13 @@ def approach_object_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0,
             for _ in range(1000):  # bounded: each step advances at least min_step
                 if t < zone:
                     break
-                d = _grid_distance(values, ox, oy, oz, inv, spacing, qx - t * zx, qy - t * zy, qz - t * zz) - radii[m]
+                d = _object_distance_below(values, ox, oy, oz, inv, spacing, box_lo, box_hi,
+                                           qx - t * zx, qy - t * zy, qz - t * zz) - radii[m]
                 if d < best:
                     best = max(d, 0.0)
                 if d <= 0.0:
                     break
-                t -= min(max(d, min_step), max_step)
+                t -= max(d, min_step)
             if best <= 0.0:
                 break
         out[k] = best

@@ -255,8 +255,10 @@ def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: 
 
 
 #: Rounds of wrist re-sampling when the palm alone comes too close to the scene; each
-#: round draws twice as many wrists as it still needs and keeps the first clear ones.
+#: round draws WRIST_SCREEN_FACTOR times as many wrists as it still needs (screening a
+#: wrist costs a fraction of a round's overhead) and keeps the first clear ones.
 WRIST_SCREEN_ROUNDS = 6
+WRIST_SCREEN_FACTOR = 4
 #: Scene only: the GRG *local* share. When the fresh (class-guided) particles are found
 #: valid less often than :data:`LOCAL_TARGET_RATE`, up to :data:`LOCAL_MAX_SHARE` of a
 #: batch are valid particles found before, perturbed (wrist turned ~:data:`LOCAL_TURN`,
@@ -299,7 +301,7 @@ def sample_particles(
     for _ in range(WRIST_SCREEN_ROUNDS - 1):
         if not len(todo):
             break
-        m = max(2 * len(todo), 16)
+        m = max(WRIST_SCREEN_FACTOR * len(todo), 32)
         y = np.empty((m, N_DIMS))
         y[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(m, rng))
         y[:, STANDOFF_INDEX] = rng.uniform(0.0, top, m)
