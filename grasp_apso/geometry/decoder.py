@@ -74,6 +74,8 @@ class GraspModel:
     #: (4,) m: the hand's radius at the base, PIP, DIP and tip of a finger (the largest
     #: of the capsules and the pad ending there): a finger's plane distance is exact there.
     joint_radii: np.ndarray = field(repr=False)
+    #: (4,) m: the radii of a finger's proximal, middle and distal capsules and its pad.
+    link_radii: np.ndarray = field(repr=False)
     #: Hand data as the compiled kernels read it (float64, C-contiguous): link lengths
     #: (5, 3) m, capsule radii of the proximal, middle and distal links (3,) m, palm box.
     link_lengths: np.ndarray = field(repr=False)
@@ -139,14 +141,15 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     object_box = np.array(obj.mesh.bounds, dtype=np.float64, order="C")
     r = hand.link_radii
     joint_radii = np.array([r[0], max(r[0], r[1]), max(r[1], r[2]), max(r[2], hand.pad_radius)], dtype=np.float64)
+    link_radii = np.array([r[0], r[1], r[2], hand.pad_radius], dtype=np.float64)
     for arr in (lower, upper, final_radii, sweep_radii, link_lengths, capsule_radii, palm_center, palm_half,
-                object_box, joint_radii):
+                object_box, joint_radii, link_radii):
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
         point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
         link_lengths=link_lengths, capsule_radii=capsule_radii, palm_center=palm_center,
-        palm_half_extents=palm_half, object_box=object_box, joint_radii=joint_radii,
+        palm_half_extents=palm_half, object_box=object_box, joint_radii=joint_radii, link_radii=link_radii,
         spread=spread,
     )
 

@@ -273,24 +273,69 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
 
 
 @_jit
-def finger_grasp_gaps(rows, rot, radii, joint_cols, joint_radii, points, horizon,
+def _capsules_gap(joints, link_radii, best, box_inv, box_half, sphere_center, sphere_radius,
+                  cyl_inv, cyl_radius, cyl_half):
+    """Least gap (m) of a finger at rest, its capsules between consecutive ``joints``
+    (J, 3) m with radii link_radii[:J-1] and a pad of radius link_radii[J-1] on the
+    last joint, to the obstacles; ``best`` when farther. Exact: a sphere's distance to
+    a segment, a box's or a cylinder's least along it (convex)."""
+    n_links = joints.shape[0] - 1
+    for k in range(sphere_center.shape[0]):
+        sx, sy, sz, sr = sphere_center[k, 0], sphere_center[k, 1], sphere_center[k, 2], sphere_radius[k]
+        for j in range(n_links + 1):
+            a = joints[j]
+            if j < n_links:
+                dx, dy, dz = joints[j + 1, 0] - a[0], joints[j + 1, 1] - a[1], joints[j + 1, 2] - a[2]
+            else:
+                dx = dy = dz = 0.0
+            g = _point_segment(sx, sy, sz, a[0], a[1], a[2], dx, dy, dz, dx * dx + dy * dy + dz * dz)
+            best = min(best, g - sr - link_radii[j])
+    n_box = box_inv.shape[0]
+    for k in range(n_box + cyl_inv.shape[0]):
+        is_box = k < n_box
+        c = 0 if is_box else k - n_box
+        if is_box:
+            inv = box_inv[k]
+            hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
+            rad, hh = 0.0, 0.0
+        else:
+            inv = cyl_inv[c]
+            hx, hy, hz = 0.0, 0.0, 0.0
+            rad, hh = cyl_radius[c], cyl_half[c]
+        for j in range(n_links + 1):
+            a = joints[j]
+            r = link_radii[j]
+            if j < n_links:
+                dx, dy, dz = joints[j + 1, 0] - a[0], joints[j + 1, 1] - a[1], joints[j + 1, 2] - a[2]
+                wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
+                wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
+                wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+                g = convex_distance.convex_path_least(is_box, inv, hx, hy, hz, rad, hh, a[0], a[1], a[2],
+                                                      dx, dy, dz, wx, wy, wz, best + r)
+            else:
+                g = convex_distance.convex_value_slope(is_box, inv, hx, hy, hz, rad, hh, a[0], a[1], a[2],
+                                                       0.0, 0.0, 0.0)[0]
+            best = min(best, g - r)
+    return best
+
+
+@_jit
+def finger_grasp_gaps(rows, rot, joint_cols, joint_radii, link_radii, points, horizon,
                       planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half,
                       out):
     """Least scene gap (m, at most ``horizon``) of each finger row's closed pose at the
-    grasp: its link spheres ``points`` (R, K, 3) m, object frame, radii (K,) m (against
-    the planes its joints, as :func:`finger_path_gaps`).
+    grasp, exact for its capsules and pad: against the planes its joints (as
+    :func:`finger_path_gaps`), against obstacles its capsules (:func:`_capsules_gap`).
 
-    rows : (R,) int; rot (P, 3, 3) -- for the rows' particles; out : (R,) m (written)
+    rows : (R,) int; rot (P, 3, 3) -- for the rows' particles
+    joint_cols (J,) int, joint_radii (J,) m -- the joints among ``points`` and the hand's
+        radius there; link_radii (J,) m -- the capsules' radii and the pad's
+    points : (R, K, 3) m, object frame -- the closed pose's link points
+    out : (R,) m (written)
     """
-    k_pts = points.shape[1]
     n_joints = joint_cols.shape[0]
-    q = np.empty((k_pts, 3))
     joints = np.empty((n_joints, 3))
-    no_planes = planes[:0]
     obstacles = sphere_center.shape[0] + box_inv.shape[0] + cyl_inv.shape[0] > 0
-    n_groups = (k_pts + CULL_GROUP - 1) // CULL_GROUP
-    gc = np.empty((n_groups, 3))
-    gb = np.empty(n_groups)
     for k in range(rows.shape[0]):
         p = rows[k] // N_FINGERS
         zx, zy, zz = rot[p, 0, 2], rot[p, 1, 2], rot[p, 2, 2]
@@ -300,11 +345,8 @@ def finger_grasp_gaps(rows, rot, radii, joint_cols, joint_radii, points, horizon
         g = _planes_path_gap(joints, joint_radii, n_joints, zx, zy, zz, 0.0, planes, horizon)
         if obstacles and not _ball_clear(joints, joint_radii, n_joints, zx, zy, zz, 0.0, g, box_inv, box_half,
                                          sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half):
-            for m in range(k_pts):
-                for i in range(3):
-                    q[m, i] = points[k, m, i]
-            g = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, 0.0, g, no_planes, box_inv, box_half,
-                                  sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half, gc, gb)
+            g = _capsules_gap(joints, link_radii, g, box_inv, box_half, sphere_center, sphere_radius,
+                              cyl_inv, cyl_radius, cyl_half)
         out[k] = g
 
 

@@ -58,7 +58,7 @@ def finger_grasp_margins(model, rows, rot, pts) -> np.ndarray:
     (:func:`grasp_apso.geometry.scene_kernels.finger_grasp_gaps`)."""
     gaps = np.empty(len(rows))
     scene_kernels.finger_grasp_gaps(
-        rows, rot, model.point_radii, JOINT_COLUMNS, model.joint_radii, np.ascontiguousarray(pts),
+        rows, rot, JOINT_COLUMNS, model.joint_radii, model.link_radii, np.ascontiguousarray(pts),
         model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps,
     )
     return gaps - model.scene_clearance - FINGER_COVER_MARGIN

@@ -254,9 +254,9 @@ def sample_fingers(model: GraspModel, n: int, rng: np.random.Generator, ranges: 
     return lo + u * (hi - lo)
 
 
-#: Rounds of wrist re-sampling when the palm alone comes too close to the scene; each
-#: round draws WRIST_SCREEN_FACTOR times as many wrists as it still needs (screening a
-#: wrist costs a fraction of a round's overhead) and keeps the first clear ones.
+#: Rounds of wrist sampling with a scene: each round draws WRIST_SCREEN_FACTOR times as
+#: many wrists as it still needs (screening a wrist costs a fraction of a round's
+#: overhead) and keeps the first ones whose palm keeps clear of the scene.
 WRIST_SCREEN_ROUNDS = 6
 WRIST_SCREEN_FACTOR = 4
 #: Scene only: the GRG *local* share. When the fresh (class-guided) particles are found
@@ -286,29 +286,32 @@ def sample_particles(
 ) -> np.ndarray:
     """Unverified guided particles (n, 19).
 
-    With a scene in the model, wrists whose palm (swept over the approach) comes within
-    the clearance of the scene are drawn again, at most :data:`WRIST_SCREEN_ROUNDS`
-    rounds (the cheap part of the scene check, before any finger is closed).
+    With a scene in the model, only wrists whose palm (swept over the approach) keeps the
+    clearance from the scene are kept, drawn in at most :data:`WRIST_SCREEN_ROUNDS`
+    rounds (the cheap part of the scene check, before any finger is closed); a particle
+    no round finds one for keeps an unscreened wrist.
     """
     x = np.empty((n, N_DIMS))
     x[:, LAYOUT.fingers] = sample_fingers(model, n, rng, ranges)
     top = _standoff_top(model, shape, ranges)
-    x[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
-    x[:, STANDOFF_INDEX] = rng.uniform(0.0, top, n)
     if model.scene is None:
+        x[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+        x[:, STANDOFF_INDEX] = rng.uniform(0.0, top, n)
         return x
-    todo = np.flatnonzero(palm_scene_margins(model, wrist_transforms(model, x, wrist_position)) < 0.0)
-    for _ in range(WRIST_SCREEN_ROUNDS - 1):
-        if not len(todo):
-            break
+    todo = np.arange(n)
+    for round_ in range(WRIST_SCREEN_ROUNDS):
         m = max(WRIST_SCREEN_FACTOR * len(todo), 32)
         y = np.empty((m, N_DIMS))
         y[:, LAYOUT.wrist] = rotation_to_wrist_angles(shape.sample_wrists(m, rng))
         y[:, STANDOFF_INDEX] = rng.uniform(0.0, top, m)
+        if round_ == 0:  # unscreened, for the particles no round finds a clear wrist for
+            x[:, 15:] = y[:n, 15:]
         clear = np.flatnonzero(palm_scene_margins(model, wrist_transforms(model, y, wrist_position)) >= 0.0)
         k = min(len(clear), len(todo))
         x[todo[:k], 15:] = y[clear[:k], 15:]
         todo = todo[k:]
+        if not len(todo):
+            break
     return x
 
 
