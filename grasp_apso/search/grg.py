@@ -28,7 +28,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import PlanningError
-from ..geometry.decoder import N_DIMS, STANDOFF_INDEX, GraspModel, decode, palm_scene_margins, wrist_transforms
+from ..geometry.decoder import N_DIMS, STANDOFF_INDEX, GraspModel, decode, wrist_transforms
+from ..geometry.scene_margins import palm_scene_margins
 from ..model.hand import N_FINGERS, rotation_to_wrist_angles, wrist_rotation
 from ..model.particle import LAYOUT
 
