@@ -187,3 +187,23 @@ def test_approach_past_the_object_is_traced_only_for_otherwise_valid_particles(d
     assert traced.any()
     assert np.all(ready[traced])
     assert np.all(d.approach_traced[traced])  # every finger of a traced particle
+
+
+@pytest.mark.parametrize("is_box", [True, False])
+def test_slab_bound_never_exceeds_the_least_along_the_path(is_box):
+    rng = np.random.default_rng(8)
+    for _ in range(300):
+        rot = _random_rotation(rng)
+        centre = rng.uniform(-0.05, 0.05, 3)
+        inv = np.eye(4)
+        inv[:3, :3] = rot.T
+        inv[:3, 3] = -rot.T @ centre
+        half = rng.uniform(0.005, 0.08, 3)
+        radius, half_height = float(rng.uniform(0.005, 0.05)), float(rng.uniform(0.005, 0.08))
+        q = rng.uniform(-0.15, 0.15, 3)
+        d = rng.normal(size=3) * 0.05
+        w = rot.T @ d
+        bound = convex_distance.path_slab_bound(is_box, inv, *half, radius, half_height, *q, *w)
+        local = (q + np.linspace(0.0, 1.0, 5001)[:, None] * d - centre) @ rot
+        sampled = (_box_sdf(local, half) if is_box else _cylinder_sdf(local, radius, half_height)).min()
+        assert bound <= sampled + 1e-9

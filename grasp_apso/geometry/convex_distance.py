@@ -100,3 +100,30 @@ def path_least(is_box, inv, hx, hy, hz, radius, half_height, qx, qy, qz, length,
     if length > 0.0:
         return convex_path_least(is_box, inv, hx, hy, hz, radius, half_height, qx, qy, qz, dx, dy, dz, wx, wy, wz, stop)
     return convex_value_slope(is_box, inv, hx, hy, hz, radius, half_height, qx, qy, qz, 0.0, 0.0, 0.0)[0]
+
+
+@_jit
+def _least_abs(lo, span):
+    """Least |lo + t span| over t in [0, 1]."""
+    hi = lo + span
+    if (lo <= 0.0 <= hi) or (hi <= 0.0 <= lo):
+        return 0.0
+    return min(abs(lo), abs(hi))
+
+
+@_jit
+def path_slab_bound(is_box, inv, hx, hy, hz, radius, half_height, qx, qy, qz, wx, wy, wz):
+    """A cheap lower bound (m) of the least signed distance from the path q + t d, t in
+    [0, 1] (``w`` = d in the obstacle's frame), to a box or a cylinder: the distance is at
+    least the one to each slab between two opposite faces (and, for a cylinder, to its
+    infinite tube), which is easy to minimise along a line. Screens paths far from an
+    obstacle before :func:`convex_path_least`."""
+    lx = inv[0, 0] * qx + inv[0, 1] * qy + inv[0, 2] * qz + inv[0, 3]
+    ly = inv[1, 0] * qx + inv[1, 1] * qy + inv[1, 2] * qz + inv[1, 3]
+    lz = inv[2, 0] * qx + inv[2, 1] * qy + inv[2, 2] * qz + inv[2, 3]
+    if is_box:
+        return max(_least_abs(lx, wx) - hx, _least_abs(ly, wy) - hy, _least_abs(lz, wz) - hz)
+    # the tube: the least distance of the 2-D segment (lx, ly) + t (wx, wy) from the axis
+    w2 = wx * wx + wy * wy
+    t = 0.0 if w2 <= 1e-18 else min(max(-(lx * wx + ly * wy) / w2, 0.0), 1.0)
+    return max(_least_abs(lz, wz) - half_height, math.sqrt((lx + t * wx) ** 2 + (ly + t * wy) ** 2) - radius)

@@ -149,17 +149,21 @@ def _spheres_path_gap(q, radii, count, zx, zy, zz, length, horizon,
         wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
         wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
         for g in range(n_groups):
-            # the obstacle's bounding sphere, then the group's bounding sphere: no sphere
-            # of the group comes nearer than either
+            # the obstacle's bounding sphere, then the obstacle itself, against the
+            # group's bounding sphere: no sphere of the group comes nearer
             if _point_segment(ex, ey, ez, gc[g, 0], gc[g, 1], gc[g, 2], dx, dy, dz, length2) - reach - gb[g] >= best:
                 continue
             if convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, gc[g, 0], gc[g, 1], gc[g, 2], length,
-                           dx, dy, dz, wx, wy, wz, best + gb[g]) - gb[g] >= best:
+                                          dx, dy, dz, wx, wy, wz, best + gb[g]) - gb[g] >= best:
                 continue
             for m in range(g * CULL_GROUP, min(count, (g + 1) * CULL_GROUP)):
                 r = radii[m]
-                d = convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, q[m, 0], q[m, 1], q[m, 2], length,
-                                dx, dy, dz, wx, wy, wz, best + r) - r
+                # the slabs' bound first (a few products), the convex least when needed
+                if convex_distance.path_slab_bound(is_box, inv, hx, hy, hz, rad, hh, q[m, 0], q[m, 1], q[m, 2],
+                                                   wx, wy, wz) - r >= best:
+                    continue
+                d = convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, q[m, 0], q[m, 1], q[m, 2],
+                                               length, dx, dy, dz, wx, wy, wz, best + r) - r
                 if d < best:
                     best = d
     return best
