@@ -37,7 +37,8 @@ import numpy as np
 from . import kernels
 from .collision import finger_collisions
 from .link_points import (
-    CLEAR_OF_PALM, FINAL_COEFF, FINAL_POINTS, JOINT_INDEX, NON_TIP_LINKS, SWEEP_COEFF, SWEEP_POINTS,
+    APPROACH_INDEX, CLEAR_OF_PALM, FINAL_COEFF, FINAL_POINTS, JOINT_INDEX, NON_TIP_LINKS, SWEEP_COEFF, SWEEP_POINTS,
+    uncovered_depth,
 )
 from .scene_margins import (
     approach_object_gaps, finger_grasp_margins, finger_path_margins, palm_scene_margins, trace_approaches,
@@ -76,6 +77,9 @@ class GraspModel:
     joint_radii: np.ndarray = field(repr=False)
     #: (4,) m: the radii of a finger's proximal, middle and distal capsules and its pad.
     link_radii: np.ndarray = field(repr=False)
+    #: (K,) m: radii of the link spheres the open hand is checked at along the approach
+    #: (:data:`grasp_apso.geometry.link_points.APPROACH_INDEX`).
+    approach_radii: np.ndarray = field(repr=False)
     #: Hand data as the compiled kernels read it (float64, C-contiguous): link lengths
     #: (5, 3) m, capsule radii of the proximal, middle and distal links (3,) m, palm box.
     link_lengths: np.ndarray = field(repr=False)
@@ -88,6 +92,9 @@ class GraspModel:
     #: Least hand-scene distance (m) and the pre-grasp retreat (m) of the scene check.
     scene_clearance: float = 0.0
     approach_distance: float = 0.0
+    #: How far (m) this hand's capsules stick out between the approach points' spheres
+    #: (the scene check subtracts it).
+    approach_cover: float = 0.0
     #: Normal spread (rad) around the surface points (:mod:`grasp_apso.geometry.normal_spread`),
     #: read by the fitness per contact; None: every contact counts as well defined.
     spread: NormalSpreadGrid | None = field(default=None, repr=False)
@@ -142,14 +149,17 @@ def make_grasp_model(hand: HandModel, obj, settings: ContactSettings | None = No
     r = hand.link_radii
     joint_radii = np.array([r[0], max(r[0], r[1]), max(r[1], r[2]), max(r[2], hand.pad_radius)], dtype=np.float64)
     link_radii = np.array([r[0], r[1], r[2], hand.pad_radius], dtype=np.float64)
+    approach_radii = np.ascontiguousarray(final_radii[APPROACH_INDEX])
     for arr in (lower, upper, final_radii, sweep_radii, link_lengths, capsule_radii, palm_center, palm_half,
-                object_box, joint_radii, link_radii):
+                object_box, joint_radii, link_radii, approach_radii):
         arr.flags.writeable = False
     return GraspModel(
         hand=hand, obj=obj, sdf=grid, settings=settings, lower=lower, upper=upper,
         point_radii=final_radii, sweep_radii=sweep_radii, support_points=_support_points(obj),
         link_lengths=link_lengths, capsule_radii=capsule_radii, palm_center=palm_center,
         palm_half_extents=palm_half, object_box=object_box, joint_radii=joint_radii, link_radii=link_radii,
+        approach_radii=approach_radii,
+        approach_cover=uncovered_depth(APPROACH_INDEX, hand.link_lengths, hand.link_radii, hand.pad_radius),
         spread=spread,
     )
 

@@ -46,9 +46,35 @@ def link_coefficients(points: np.ndarray) -> np.ndarray:
 
 SWEEP_COEFF = link_coefficients(SWEEP_POINTS)
 FINAL_COEFF = link_coefficients(FINAL_POINTS)
-#: The approach's object check traces every other final point and the pad.
+#: Every other final point and the pad (the joints among them): the open hand along the
+#: approach is checked at these, against the object and against obstacles.
 APPROACH_INDEX = np.r_[np.arange(0, len(FINAL_POINTS) - 1, 2), len(FINAL_POINTS) - 1]
 APPROACH_COEFF = np.ascontiguousarray(FINAL_COEFF[:, APPROACH_INDEX])
+#: The joints' columns among the approach points.
+APPROACH_JOINT_COLUMNS = np.searchsorted(APPROACH_INDEX, JOINT_INDEX).astype(np.int64)
+if not np.array_equal(APPROACH_INDEX[APPROACH_JOINT_COLUMNS], JOINT_INDEX):
+    raise RuntimeError("link_points: the approach points must hold every joint")
 
-for _table in (SWEEP_POINTS, FINAL_POINTS, JOINT_COLUMNS, SWEEP_COEFF, FINAL_COEFF, APPROACH_INDEX, APPROACH_COEFF):
+
+def uncovered_depth(index: np.ndarray, link_lengths: np.ndarray, link_radii: np.ndarray, pad_radius: float) -> float:
+    """Deepest part (m) of a finger's capsules outside the spheres at the final points
+    ``index`` (consecutive points on a link, spheres of their links' radii, the pad's at
+    the tip), over the fingers of link_lengths (5, 3) m and radii (3,) m: between two
+    spheres of radius r a distance d apart, a capsule of radius R sticks out by
+    ``R - sqrt(r^2 - (d / 2)^2)``."""
+    pts = FINAL_POINTS[np.asarray(index)]
+    chain = pts[:, 0] + pts[:, 1]  # link + fraction: distance along the chain in links
+    radii = np.array([link_radii[int(k)] for k in pts[:, 0]])
+    radii[np.asarray(index) == len(FINAL_POINTS) - 1] = pad_radius
+    worst = 0.0
+    for i in range(len(pts) - 1):
+        link = min(int(np.ceil(chain[i + 1])) - 1, 2)  # the link the pair lies on
+        r = min(radii[i], radii[i + 1])
+        for length in np.asarray(link_lengths)[:, link]:
+            half = 0.5 * (chain[i + 1] - chain[i]) * length
+            worst = max(worst, link_radii[link] - np.sqrt(max(r * r - half * half, 0.0)))
+    return float(worst)
+
+for _table in (SWEEP_POINTS, FINAL_POINTS, JOINT_COLUMNS, SWEEP_COEFF, FINAL_COEFF, APPROACH_INDEX, APPROACH_COEFF,
+               APPROACH_JOINT_COLUMNS):
     _table.flags.writeable = False

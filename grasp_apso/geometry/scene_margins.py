@@ -14,13 +14,13 @@ from __future__ import annotations
 import numpy as np
 
 from . import scene_kernels
-from .link_points import APPROACH_COEFF, APPROACH_INDEX, FINAL_COEFF, JOINT_COLUMNS
+from .link_points import APPROACH_COEFF, APPROACH_JOINT_COLUMNS, JOINT_COLUMNS
 
 #: Scene gaps are computed up to this far beyond the clearance (m); farther is "clear".
 SCENE_HORIZON = 0.002
-#: The link spheres cover the capsules to within about 0.3 mm (against obstacles; against
-#: planes the joints give the capsules' distance exactly): finger gaps are reduced by
-#: this (m) so that the check stays conservative.
+#: Finger gaps are reduced by this (m), at least: against obstacles along the approach the
+#: link spheres leave up to ``GraspModel.approach_cover`` of the capsules out (1.0 mm for
+#: the built-in hand); at the grasp the capsules and against planes the joints are exact.
 FINGER_COVER_MARGIN = 0.001
 #: Along the approach the open hand may touch the object only in the last this many m
 #: before the grasp (``hand_fcl.CONTACT_ZONE``); elsewhere a finger whose link spheres
@@ -42,15 +42,17 @@ def _scene_arrays(model) -> tuple:
 
 def finger_path_margins(model, rows, rot, trans, planes, distal0, proximal0) -> np.ndarray:
     """Scene margin (R,) m of the finger rows' open pre-shape along the approach
-    (:func:`grasp_apso.geometry.scene_kernels.finger_path_gaps`)."""
+    (:func:`grasp_apso.geometry.scene_kernels.finger_path_gaps`; against obstacles at the
+    approach points, every other link sphere: their gaps leave up to
+    ``model.approach_cover`` of the capsules out, which is subtracted)."""
     gaps = np.empty(len(rows))
     scene_kernels.finger_path_gaps(
         rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
         np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
-        FINAL_COEFF, model.point_radii, JOINT_COLUMNS, model.joint_radii, model.approach_distance,
+        APPROACH_COEFF, model.approach_radii, APPROACH_JOINT_COLUMNS, model.joint_radii, model.approach_distance,
         model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps,
     )
-    return gaps - model.scene_clearance - FINGER_COVER_MARGIN
+    return gaps - model.scene_clearance - max(FINGER_COVER_MARGIN, model.approach_cover)
 
 
 def finger_grasp_margins(model, rows, rot, pts) -> np.ndarray:
@@ -86,8 +88,7 @@ def approach_object_gaps(model, rows, rot, trans, planes, distal0, proximal0) ->
     scene_kernels.approach_object_gaps(
         rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
         np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
-        APPROACH_COEFF, np.ascontiguousarray(model.point_radii[APPROACH_INDEX]), sdf._values64, sdf._origin64,
-        float(sdf.spacing),
+        APPROACH_COEFF, model.approach_radii, sdf._values64, sdf._origin64, float(sdf.spacing),
         model.object_box[0], model.object_box[1], model.approach_distance, APPROACH_CONTACT_ZONE,
         APPROACH_MIN_STEP, APPROACH_GAP_CAP, gaps,
     )
