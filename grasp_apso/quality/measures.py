@@ -426,7 +426,9 @@ def epsilon_quality(
     n_len = np.linalg.norm(nrm, axis=1)
     if np.any(n_len <= 0.0):
         raise ValueError("normals: zero-length normal")
-    if pts.shape[0] == 0:
+    if pts.shape[0] < 3:
+        # One or two point contacts never enclose the origin in 6-D: no force at them has
+        # a moment about the line through them, so every wrench lies in a hyperplane.
         return 0.0, False
     nrm = nrm / n_len[:, None]
 
