@@ -248,3 +248,27 @@ def test_skipped_poses_do_not_change_the_report():
         assert report.clear == (min(every) >= 0.005)
         verdicts.add(report.clear)
     assert verdicts == {True, False}  # both outcomes exercised
+
+
+def test_the_object_box_screen_leaves_the_report_unchanged():
+    """With the object's bounding box given, parts it shows far from the object are not
+    measured against the mesh; the verdict and both minima stay exactly the same."""
+    from grasp_apso.model.builtin import builtin
+
+    fish = builtin("fish").mesh
+    bvh = mesh_bvh(fish)
+    rng = np.random.default_rng(4)
+    object_pose = _pose(wrist_rotation(np.array([0.2, -0.1, 0.4])), [0.01, -0.02, 0.03])
+    scene = Scene.from_primitives(planes=[(0.0, 0.0, 1.0, 0.06)])
+    verdicts = set()
+    for _ in range(40):
+        rot = wrist_rotation(rng.uniform(-math.pi, math.pi, 3))
+        centre = object_pose[:3, :3] @ fish.sample(1, seed=int(rng.integers(1 << 30)))[0] + object_pose[:3, 3]
+        grasp = _pose(rot, centre - rot[:, 2] * rng.uniform(0.02, 0.06) - rot @ HAND.grasp_center)
+        values = rng.uniform(0.0, 0.4, 15)
+        plain = approach_report(HAND, values, grasp, 0.08, scene, bvh, object_pose, 0.005)
+        screened = approach_report(HAND, values, grasp, 0.08, scene, bvh, object_pose, 0.005,
+                                   obj_bounds=fish.bounds)
+        assert screened == plain
+        verdicts.add(plain.clear)
+    assert verdicts == {True, False}

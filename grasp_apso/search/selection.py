@@ -153,7 +153,7 @@ class Verifier:
             if scene_clear:  # the approach only when the grasp itself is clear
                 approach = hand_fcl.approach_report(
                     hand, np.clip(x[i], model.lower, model.upper), wrist, model.approach_distance, self.scene,
-                    self.bvh, None, clearance)
+                    self.bvh, None, clearance, obj_bounds=model.object_box)
                 scene_distance = min(scene_distance, approach.min_scene_distance)
                 scene_clear = bool(approach.clear)
             valid = valid and scene_clear
