@@ -176,12 +176,12 @@ def test_warm_up_loads_every_kernel_a_plan_uses():
     # In a process of its own: here the other tests have compiled the kernels already.
     script = (
         "from numba.core.registry import CPUDispatcher\n"
-        "from grasp_apso.geometry import kernels, scene_kernels\n"
+        "from grasp_apso.geometry import kernels, palm_kernels, scene_kernels\n"
         "from grasp_apso.quality import kernels as quality_kernels\n"
         "from grasp_apso.search.planner import warm_up\n"
         "seconds = warm_up()\n"
         "assert seconds > 0.0\n"
-        "print(sorted(n for m in (kernels, scene_kernels, quality_kernels) for n, f in vars(m).items()\n"
+        "print(sorted(n for m in (kernels, scene_kernels, palm_kernels, quality_kernels) for n, f in vars(m).items()\n"
         "             if isinstance(f, CPUDispatcher) and not n.startswith('_') and not f.signatures))\n"
     )
     out = subprocess.run([sys.executable, "-c", script], cwd=REPO_ROOT, capture_output=True, text=True,

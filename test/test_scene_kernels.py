@@ -106,8 +106,9 @@ def test_object_distance_for_tracing_never_over_estimates_far_away():
     assert np.median(np.abs(below - exact)[outside & in_box]) < 0.002
 
 
-def _scene() -> Scene:
-    """A tilted table, a wall, a post and a ball around the built-in fish (object frame)."""
+def _scene(with_ball: bool = True) -> Scene:
+    """A tilted table, a wall, a post and (``with_ball``) a ball around the built-in fish
+    (object frame)."""
     v = np.asarray(builtin("fish").mesh.vertices)
     tilt = np.array([0.08, 0.0, 1.0]) / np.linalg.norm([0.08, 0.0, 1.0])
     wall, post, ball = np.eye(4), np.eye(4), np.eye(4)
@@ -117,15 +118,16 @@ def _scene() -> Scene:
     ball[:3, 3] = [v[:, 0].min() - 0.05, -0.03, 0.03]
     return Scene.from_primitives(
         planes=[(*tilt, -(v @ tilt).min())],
-        obstacles=[(BOX, (0.3, 0.02, 0.12)), (CYLINDER, (0.12, 0.015)), (SPHERE, (0.02,))],
-        obstacle_poses=[wall, post, ball],
+        obstacles=[(BOX, (0.3, 0.02, 0.12)), (CYLINDER, (0.12, 0.015)), (SPHERE, (0.02,))][:3 if with_ball else 2],
+        obstacle_poses=[wall, post, ball][:3 if with_ball else 2],
     )
 
 
-@pytest.fixture(scope="module")
-def decoded_in_a_scene():
+@pytest.fixture(scope="module", params=[True, False], ids=["with_ball", "boxes_only"])
+def decoded_in_a_scene(request):
+    """Without a ball the path check screens capsules by slabs first; with one it does not."""
     obj = builtin("fish")
-    scene = _scene()
+    scene = _scene(request.param)
     model = decoder.with_scene(prepare(obj), scene, CLEARANCE, APPROACH)
     # class-guided particles from the table's free side, without GRG's screening of the
     # palm against the scene: many meet the scene, many do not
@@ -207,3 +209,23 @@ def test_slab_bound_never_exceeds_the_least_along_the_path(is_box):
         local = (q + np.linspace(0.0, 1.0, 5001)[:, None] * d - centre) @ rot
         sampled = (_box_sdf(local, half) if is_box else _cylinder_sdf(local, radius, half_height)).min()
         assert bound <= sampled + 1e-9
+
+
+def test_slab_gap_bounds_a_swept_segment_from_below():
+    """The slab bound of a parallelogram (a link swept along the approach) never exceeds
+    the least distance of its densely sampled points to the box."""
+    rng = np.random.default_rng(9)
+    ends = np.empty((4, 3))
+    for _ in range(200):
+        rot = _random_rotation(rng)
+        centre = rng.uniform(-0.05, 0.05, 3)
+        inv = np.eye(4)
+        inv[:3, :3] = rot.T
+        inv[:3, 3] = -rot.T @ centre
+        half = rng.uniform(0.005, 0.08, 3)
+        a, e, w = rng.uniform(-0.15, 0.15, 3), rng.normal(size=3) * 0.03, rng.normal(size=3) * 0.05
+        ends[:] = [a, a + w, a + e, a + e + w]
+        bound = scene_kernels._slab_gap(inv, *half, ends, 4, True)
+        s, t = np.meshgrid(np.linspace(0, 1, 81), np.linspace(0, 1, 81))
+        pts = a + s.reshape(-1, 1) * e + t.reshape(-1, 1) * w
+        assert bound <= _box_sdf((pts - centre) @ rot, half).min() + 1e-9

@@ -36,9 +36,9 @@ _CELL_MARGIN = 1e-3
 # signed-distance grid: trilinear look-up
 # --------------------------------------------------------------------------------------
 @_jit
-def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
-    """Signed distance at one point: trilinear inside the grid box, plus the distance to
-    the box outside it (an over-estimate far from the object). ``inv`` = 1 / spacing."""
+def _grid_value(values, ox, oy, oz, inv, spacing, x, y, z):
+    """(trilinear value at the nearest point c of the grid's box, |p - c| m): the two
+    parts of a look-up. ``inv`` = 1 / spacing."""
     nx, ny, nz = values.shape
     gx = (x - ox) * inv
     gy = (y - oy) * inv
@@ -60,7 +60,15 @@ def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
     c11 = values[i + 1, j + 1, k] + (values[i + 1, j + 1, k + 1] - values[i + 1, j + 1, k]) * fz
     c0 = c00 + (c01 - c00) * fy
     c1 = c10 + (c11 - c10) * fy
-    return c0 + (c1 - c0) * fx + outside
+    return c0 + (c1 - c0) * fx, outside
+
+
+@_jit
+def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
+    """Signed distance at one point: trilinear inside the grid box, plus the distance to
+    the box outside it (an over-estimate far from the object). ``inv`` = 1 / spacing."""
+    value, outside = _grid_value(values, ox, oy, oz, inv, spacing, x, y, z)
+    return value + outside
 
 
 @_jit

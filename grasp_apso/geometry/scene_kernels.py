@@ -18,13 +18,11 @@ Exact where cheap, conservative (the distance is never over-estimated) elsewhere
 - spheres: the distance from a sphere's centre to the path segment (exact);
 - boxes and cylinders: the distance is convex along the path, bounded from below
   within 0.1 mm by the tangents at the ends of a shrinking bracket
-  (:mod:`grasp_apso.geometry.convex_distance`). The palm swept along its own normal is
-  one longer box; its distance to a box or a cylinder is bounded from below by the
-  largest gap between their projections over a set of separating axes (the boxes' face
-  normals, the pairwise cross products, the line between the centres);
-- culling: a finger whose joints' ball, a group of link spheres whose ball, or a palm
-  whose bounding sphere stays farther than ``horizon`` from an obstacle skips it (and
-  reads ``horizon``);
+  (:mod:`grasp_apso.geometry.convex_distance`); the palm box swept along its own
+  normal is :mod:`grasp_apso.geometry.palm_kernels`;
+- culling: a finger whose joints' ball, or whose capsules' sweeps by the slabs between a
+  box's faces, or a group of link spheres whose ball stays farther than ``horizon`` from
+  an obstacle skips it (and reads ``horizon``);
 - the object along the approach: each link sphere's path is sphere-traced in the
   object's distance grid (:func:`approach_object_gaps`).
 
@@ -41,7 +39,7 @@ import numba
 import numpy as np
 
 from . import convex_distance
-from .kernels import _CELL_MARGIN, N_FINGERS, _grid_distance, _segments, _world_plane
+from .kernels import N_FINGERS, _grid_value, _segments, _world_plane
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -215,8 +213,54 @@ def _ball_clear(points, radii, count, zx, zy, zz, length, best, box_inv, box_hal
 
 
 @_jit
+def _slab_gap(inv, hx, hy, hz, ends, count, is_box):
+    """Lower bound (m) of the distance from the convex hull of ``ends[:count]`` (points,
+    object frame) to a box (half sizes hx, hy, hz) or, with ``is_box`` False, to the slab
+    of a cylinder's height (half height ``hz``): along each of the obstacle's axes the
+    hull's coordinates span an interval; the largest gap of an interval to the slab."""
+    best = -np.inf
+    for axis in range(3 if is_box else 1):
+        ax = 2 if not is_box else axis
+        half = hx if ax == 0 else (hy if ax == 1 else hz)
+        lo, hi = np.inf, -np.inf
+        for m in range(count):
+            c = inv[ax, 0] * ends[m, 0] + inv[ax, 1] * ends[m, 1] + inv[ax, 2] * ends[m, 2] + inv[ax, 3]
+            lo = min(lo, c)
+            hi = max(hi, c)
+        best = max(best, lo - half, -half - hi)
+    return best
+
+
+@_jit
+def _capsules_slab_clear(joints, link_radii, zx, zy, zz, length, best, box_inv, box_half, cyl_inv, cyl_half, ends):
+    """True when every capsule and the pad of a finger (``joints`` (J, 3) m, radii
+    link_radii (J,) m, moved from there by -length * z) stay at least ``best`` (m) from
+    every box and cylinder by the slabs between their faces (:func:`_slab_gap`: exact
+    for a flat wall); ``ends`` (4, 3) is scratch."""
+    n_links = joints.shape[0] - 1
+    dx, dy, dz = -length * zx, -length * zy, -length * zz
+    n_box = box_inv.shape[0]
+    for k in range(n_box + cyl_inv.shape[0]):
+        is_box = k < n_box
+        inv = box_inv[k] if is_box else cyl_inv[k - n_box]
+        hx = box_half[k, 0] if is_box else 0.0
+        hy = box_half[k, 1] if is_box else 0.0
+        hz = box_half[k, 2] if is_box else cyl_half[k - n_box]
+        for j in range(n_links + 1):
+            count = 0
+            for e in range(2 if j < n_links else 1):
+                for i in range(3):
+                    ends[count, i] = joints[j + e, i]
+                    ends[count + 1, i] = joints[j + e, i] + (dx if i == 0 else (dy if i == 1 else dz))
+                count += 2
+            if _slab_gap(inv, hx, hy, hz, ends, count, is_box) - link_radii[j] < best:
+                return False
+    return True
+
+
+@_jit
 def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, proximal0,
-                     coeff, radii, joint_cols, joint_radii, approach_distance, horizon,
+                     coeff, radii, joint_cols, joint_radii, link_radii, approach_distance, horizon,
                      planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half,
                      out):
     """Least scene gap (m, at most ``horizon``) of each finger row's open pre-shape moved
@@ -234,7 +278,8 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
     distal0, proximal0 : (F,) rad -- the pre-shape flexions
     coeff (3, K), radii (K,) m -- link spheres as combinations of the planar segments
     joint_cols (J,) int, joint_radii (J,) m -- the columns of the joints among them and
-        the radius of the hand at each joint
+        the radius of the hand at each joint; link_radii (J,) m -- the capsules' radii and
+        the pad's
     approach_distance : m
     out : (R,) m (written)
     """
@@ -249,6 +294,7 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
     n_groups = (k_pts + CULL_GROUP - 1) // CULL_GROUP
     gc = np.empty((n_groups, 3))
     gb = np.empty(n_groups)
+    ends = np.empty((4, 3))
     for k in range(rows.shape[0]):
         f = rows[k]
         p = f // N_FINGERS
@@ -262,9 +308,14 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
             for i in range(3):
                 joints[j, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
         g = _planes_path_gap(joints, joint_radii, n_joints, zx, zy, zz, approach_distance, planes, horizon)
+        # obstacles: the ball around the joints, then (boxes and cylinders only) the
+        # slabs of each capsule's sweep, then the link spheres
         if obstacles and not _ball_clear(joints, joint_radii, n_joints, zx, zy, zz, approach_distance, g,
                                          box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius,
-                                         cyl_half):
+                                         cyl_half) and not (
+                sphere_center.shape[0] == 0
+                and _capsules_slab_clear(joints, link_radii, zx, zy, zz, approach_distance, g, box_inv, box_half,
+                                         cyl_inv, cyl_half, ends)):
             for m in range(k_pts):
                 u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
                 v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
@@ -355,124 +406,6 @@ def finger_grasp_gaps(rows, rot, joint_cols, joint_radii, link_radii, points, ho
 
 
 @_jit
-def _box_projection(ax, half, ux, uy, uz):
-    """Half length of a box (axes = columns of ``ax``) projected on u."""
-    return (half[0] * abs(ax[0, 0] * ux + ax[1, 0] * uy + ax[2, 0] * uz)
-            + half[1] * abs(ax[0, 1] * ux + ax[1, 1] * uy + ax[2, 1] * uz)
-            + half[2] * abs(ax[0, 2] * ux + ax[1, 2] * uy + ax[2, 2] * uz))
-
-
-@_jit
-def _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh, ux, uy, uz):
-    """Gap along u (normalised here) between the palm box and a box (kind 0, half
-    sizes ``hb``) or a cylinder (kind 1, radius rb, half height hh, axis = axes_b[:, 2])."""
-    norm = math.sqrt(ux * ux + uy * uy + uz * uz)
-    if norm < 1e-9:
-        return -np.inf
-    ux /= norm
-    uy /= norm
-    uz /= norm
-    span = abs((cb[0] - pc[0]) * ux + (cb[1] - pc[1]) * uy + (cb[2] - pc[2]) * uz)
-    reach = _box_projection(pa, half, ux, uy, uz)
-    if kind == 0:
-        reach += _box_projection(axes_b, hb, ux, uy, uz)
-    else:
-        c = axes_b[0, 2] * ux + axes_b[1, 2] * uy + axes_b[2, 2] * uz
-        reach += hh * abs(c) + rb * math.sqrt(max(0.0, 1.0 - c * c))
-    return span - reach
-
-
-@_jit
-def palm_scene_gaps(rot, trans, center, half_extents, approach_distance, horizon,
-                    planes, box_inv, box_half, sphere_center, sphere_radius,
-                    cyl_inv, cyl_radius, cyl_half, out):
-    """Least scene gap (m, at most ``horizon``) of the palm box swept from the
-    pre-grasp to the grasp (one box longer by ``approach_distance`` along the palm
-    normal), per particle.
-
-    rot (P, 3, 3), trans (P, 3) : palm frame in the object frame
-    center, half_extents : (3,) m -- the palm box in the palm frame
-    out : (P,) m (written)
-    """
-    half = np.empty(3)
-    pc = np.empty(3)
-    cb = np.empty(3)
-    hb = np.empty(3)
-    axes_b = np.empty((3, 3))
-    half[0] = half_extents[0]
-    half[1] = half_extents[1]
-    half[2] = half_extents[2] + 0.5 * approach_distance
-    n_box = box_inv.shape[0]
-    for p in range(rot.shape[0]):
-        pa = rot[p]
-        for i in range(3):
-            pc[i] = (trans[p, i] + pa[i, 0] * center[0] + pa[i, 1] * center[1] + pa[i, 2] * center[2]
-                     - 0.5 * approach_distance * pa[i, 2])
-        best = horizon
-        for k in range(planes.shape[0]):
-            g = (planes[k, 0] * pc[0] + planes[k, 1] * pc[1] + planes[k, 2] * pc[2] + planes[k, 3]
-                 - _box_projection(pa, half, planes[k, 0], planes[k, 1], planes[k, 2]))
-            best = min(best, g)
-        palm_reach = math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2)
-        for k in range(sphere_center.shape[0]):
-            dx = sphere_center[k, 0] - pc[0]
-            dy = sphere_center[k, 1] - pc[1]
-            dz = sphere_center[k, 2] - pc[2]
-            out2 = 0.0
-            inside = -np.inf
-            for a in range(3):
-                local = pa[0, a] * dx + pa[1, a] * dy + pa[2, a] * dz
-                qa = abs(local) - half[a]
-                inside = max(inside, qa)
-                if qa > 0.0:
-                    out2 += qa * qa
-            best = min(best, math.sqrt(out2) + min(inside, 0.0) - sphere_radius[k])
-        for k in range(n_box + cyl_inv.shape[0]):
-            if k < n_box:
-                inv = box_inv[k]
-                kind = 0
-                hb[0], hb[1], hb[2] = box_half[k, 0], box_half[k, 1], box_half[k, 2]
-                rb = 0.0
-                hh = 0.0
-                reach = math.sqrt(hb[0] ** 2 + hb[1] ** 2 + hb[2] ** 2)
-            else:
-                c = k - n_box
-                inv = cyl_inv[c]
-                kind = 1
-                rb = cyl_radius[c]
-                hh = cyl_half[c]
-                reach = math.sqrt(rb * rb + hh * hh)
-            cb[0], cb[1], cb[2] = _inv_center(inv)
-            for a in range(3):  # axes of the obstacle = rows of its inverse rotation
-                for i in range(3):
-                    axes_b[i, a] = inv[a, i]
-            dist_c = math.sqrt((cb[0] - pc[0]) ** 2 + (cb[1] - pc[1]) ** 2 + (cb[2] - pc[2]) ** 2)
-            if dist_c - reach - palm_reach >= best:
-                continue
-            # the palm's bounding sphere against the obstacle itself (a large wall's own
-            # bounding sphere culls nothing)
-            if convex_distance.convex_value_slope(kind == 0, inv, hb[0], hb[1], hb[2], rb, hh, pc[0], pc[1], pc[2],
-                                   0.0, 0.0, 0.0)[0] - palm_reach >= best:
-                continue
-            gap = _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh,
-                              cb[0] - pc[0], cb[1] - pc[1], cb[2] - pc[2])
-            for a in range(3):
-                gap = max(gap, _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh,
-                                           pa[0, a], pa[1, a], pa[2, a]))
-                gap = max(gap, _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh,
-                                           axes_b[0, a], axes_b[1, a], axes_b[2, a]))
-                for b in range(3):
-                    if kind == 1 and b != 2:
-                        continue
-                    ux = pa[1, a] * axes_b[2, b] - pa[2, a] * axes_b[1, b]
-                    uy = pa[2, a] * axes_b[0, b] - pa[0, a] * axes_b[2, b]
-                    uz = pa[0, a] * axes_b[1, b] - pa[1, a] * axes_b[0, b]
-                    gap = max(gap, _separation(pa, pc, half, axes_b, cb, kind, hb, rb, hh, ux, uy, uz))
-            best = min(best, gap)
-        out[p] = best
-
-
-@_jit
 def _object_distance_below(values, ox, oy, oz, inv, spacing, box_lo, box_hi, x, y, z):
     """Distance (m) of a point to the object for tracing: never over-estimated far away,
     0 or less inside it (not its depth).
@@ -484,30 +417,11 @@ def _object_distance_below(values, ox, oy, oz, inv, spacing, box_lo, box_hi, x, 
     the distance to the object's bounding box ``box_lo``, ``box_hi`` (3,) m.
     Branch-free: about as fast as a plain look-up.
     """
-    nx, ny, nz = values.shape
-    gx = (x - ox) * inv
-    gy = (y - oy) * inv
-    gz = (z - oz) * inv
-    cx = min(max(gx, 0.0), nx - 1 - _CELL_MARGIN)
-    cy = min(max(gy, 0.0), ny - 1 - _CELL_MARGIN)
-    cz = min(max(gz, 0.0), nz - 1 - _CELL_MARGIN)
-    outside = math.sqrt((gx - cx) ** 2 + (gy - cy) ** 2 + (gz - cz) ** 2) * spacing
-    i = int(cx)
-    j = int(cy)
-    k = int(cz)
-    fx = cx - i
-    fy = cy - j
-    fz = cz - k
-    c00 = values[i, j, k] + (values[i, j, k + 1] - values[i, j, k]) * fz
-    c01 = values[i, j + 1, k] + (values[i, j + 1, k + 1] - values[i, j + 1, k]) * fz
-    c10 = values[i + 1, j, k] + (values[i + 1, j, k + 1] - values[i + 1, j, k]) * fz
-    c11 = values[i + 1, j + 1, k] + (values[i + 1, j + 1, k + 1] - values[i + 1, j + 1, k]) * fz
-    c0 = c00 + (c01 - c00) * fy
-    c1 = c10 + (c11 - c10) * fy
+    value, outside = _grid_value(values, ox, oy, oz, inv, spacing, x, y, z)
     dx = max(box_lo[0] - x, 0.0, x - box_hi[0])
     dy = max(box_lo[1] - y, 0.0, y - box_hi[1])
     dz = max(box_lo[2] - z, 0.0, z - box_hi[2])
-    return max(c0 + (c1 - c0) * fx - outside, math.sqrt(dx * dx + dy * dy + dz * dz))
+    return max(value - outside, math.sqrt(dx * dx + dy * dy + dz * dz))
 
 
 @_jit

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import scene_kernels
+from . import palm_kernels, scene_kernels
 from .link_points import APPROACH_COEFF, APPROACH_JOINT_COLUMNS, JOINT_COLUMNS
 
 #: Scene gaps are computed up to this far beyond the clearance (m); farther is "clear".
@@ -49,7 +49,8 @@ def finger_path_margins(model, rows, rot, trans, planes, distal0, proximal0) -> 
     scene_kernels.finger_path_gaps(
         rows, rot, trans, planes, model.link_lengths, float(model.hand.coupling_ratio),
         np.ascontiguousarray(distal0).reshape(-1), np.ascontiguousarray(proximal0).reshape(-1),
-        APPROACH_COEFF, model.approach_radii, APPROACH_JOINT_COLUMNS, model.joint_radii, model.approach_distance,
+        APPROACH_COEFF, model.approach_radii, APPROACH_JOINT_COLUMNS, model.joint_radii, model.link_radii,
+        model.approach_distance,
         model.scene_clearance + SCENE_HORIZON, *_scene_arrays(model), gaps,
     )
     return gaps - model.scene_clearance - max(FINGER_COVER_MARGIN, model.approach_cover)
@@ -73,7 +74,7 @@ def palm_scene_margins(model, wrist: np.ndarray) -> np.ndarray:
     if model.scene is None:
         return np.full(len(wrist), np.inf)
     gaps = np.empty(len(wrist))
-    scene_kernels.palm_scene_gaps(
+    palm_kernels.palm_scene_gaps(
         np.ascontiguousarray(wrist[:, :3, :3]), np.ascontiguousarray(wrist[:, :3, 3]), model.palm_center,
         model.palm_half_extents, model.approach_distance, model.scene_clearance + SCENE_HORIZON,
         *_scene_arrays(model), gaps)
