@@ -31,6 +31,18 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
     ])
 
 
+def _random_obstacle(rng: np.random.Generator) -> tuple:
+    """A random pose and size: rotation (3, 3), centre (3,), world -> local (4, 4), box
+    half sizes (3,), cylinder radius and half height (m)."""
+    rot = _random_rotation(rng)
+    centre = rng.uniform(-0.05, 0.05, 3)
+    inv = np.eye(4)
+    inv[:3, :3] = rot.T
+    inv[:3, 3] = -rot.T @ centre
+    half = rng.uniform(0.005, 0.08, 3)
+    return rot, centre, inv, half, float(rng.uniform(0.005, 0.05)), float(rng.uniform(0.005, 0.08))
+
+
 def _box_sdf(local: np.ndarray, half: np.ndarray) -> np.ndarray:
     q = np.abs(local) - half
     return np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
@@ -48,13 +60,7 @@ def test_convex_path_least_is_a_tight_lower_bound_of_the_sampled_least(is_box):
     rng = np.random.default_rng(5)
     worst_over, worst_under = -np.inf, -np.inf
     for _ in range(300):
-        rot = _random_rotation(rng)
-        centre = rng.uniform(-0.05, 0.05, 3)
-        inv = np.eye(4)
-        inv[:3, :3] = rot.T
-        inv[:3, 3] = -rot.T @ centre
-        half = rng.uniform(0.005, 0.08, 3)
-        radius, half_height = float(rng.uniform(0.005, 0.05)), float(rng.uniform(0.005, 0.08))
+        rot, centre, inv, half, radius, half_height = _random_obstacle(rng)
         q = rng.uniform(-0.15, 0.15, 3)
         d = rng.normal(size=3)
         d *= rng.uniform(0.01, 0.12) / np.linalg.norm(d)
@@ -195,13 +201,7 @@ def test_approach_past_the_object_is_traced_only_for_otherwise_valid_particles(d
 def test_slab_bound_never_exceeds_the_least_along_the_path(is_box):
     rng = np.random.default_rng(8)
     for _ in range(300):
-        rot = _random_rotation(rng)
-        centre = rng.uniform(-0.05, 0.05, 3)
-        inv = np.eye(4)
-        inv[:3, :3] = rot.T
-        inv[:3, 3] = -rot.T @ centre
-        half = rng.uniform(0.005, 0.08, 3)
-        radius, half_height = float(rng.uniform(0.005, 0.05)), float(rng.uniform(0.005, 0.08))
+        rot, centre, inv, half, radius, half_height = _random_obstacle(rng)
         q = rng.uniform(-0.15, 0.15, 3)
         d = rng.normal(size=3) * 0.05
         w = rot.T @ d
@@ -217,12 +217,7 @@ def test_slab_gap_bounds_a_swept_segment_from_below():
     rng = np.random.default_rng(9)
     ends = np.empty((4, 3))
     for _ in range(200):
-        rot = _random_rotation(rng)
-        centre = rng.uniform(-0.05, 0.05, 3)
-        inv = np.eye(4)
-        inv[:3, :3] = rot.T
-        inv[:3, 3] = -rot.T @ centre
-        half = rng.uniform(0.005, 0.08, 3)
+        rot, centre, inv, half, _, _ = _random_obstacle(rng)
         a, e, w = rng.uniform(-0.15, 0.15, 3), rng.normal(size=3) * 0.03, rng.normal(size=3) * 0.05
         ends[:] = [a, a + w, a + e, a + e + w]
         bound = scene_kernels._slab_gap(inv, *half, ends, 4, True)

@@ -81,6 +81,25 @@ def _planes_path_gap(q, radii, count, zx, zy, zz, length, planes, best):
     return best
 
 
+@_jit
+def _convex_obstacle(k, box_inv, box_half, cyl_inv, cyl_radius, cyl_half):
+    """Obstacle k of the boxes then the cylinders: (is_box, world -> local (3, 4), box
+    half sizes hx, hy, hz (0 for a cylinder), cylinder radius and half height (0 for a box))."""
+    n_box = box_inv.shape[0]
+    if k < n_box:
+        return True, box_inv[k], box_half[k, 0], box_half[k, 1], box_half[k, 2], 0.0, 0.0
+    c = k - n_box
+    return False, cyl_inv[c], 0.0, 0.0, 0.0, cyl_radius[c], cyl_half[c]
+
+
+@_jit
+def _local_direction(inv, dx, dy, dz):
+    """A direction (object frame) in an obstacle's frame."""
+    return (inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz,
+            inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz,
+            inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz)
+
+
 #: Link spheres per culling group of :func:`_spheres_path_gap` (consecutive spheres of a
 #: finger: a group's bounding sphere is a few centimetres across).
 CULL_GROUP = 7
@@ -130,22 +149,10 @@ def _spheres_path_gap(q, radii, count, zx, zy, zz, length, horizon,
                     best = d
     # boxes and cylinders: the least along the path of a convex distance (tangent bound)
     for k in range(n_obst):
-        is_box = k < n_box
-        c = 0 if is_box else k - n_box
-        if is_box:
-            inv = box_inv[k]
-            hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
-            rad, hh = 0.0, 0.0
-            reach = math.sqrt(hx * hx + hy * hy + hz * hz)
-        else:
-            inv = cyl_inv[c]
-            hx, hy, hz = 0.0, 0.0, 0.0
-            rad, hh = cyl_radius[c], cyl_half[c]
-            reach = math.sqrt(rad * rad + hh * hh)
+        is_box, inv, hx, hy, hz, rad, hh = _convex_obstacle(k, box_inv, box_half, cyl_inv, cyl_radius, cyl_half)
+        reach = math.sqrt(hx * hx + hy * hy + hz * hz + rad * rad + hh * hh)  # one of the pairs is 0
         ex, ey, ez = _inv_center(inv)
-        wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
-        wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
-        wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+        wx, wy, wz = _local_direction(inv, dx, dy, dz)
         for g in range(n_groups):
             # the obstacle's bounding sphere, then the obstacle itself, against the
             # group's bounding sphere: no sphere of the group comes nearer
@@ -193,19 +200,8 @@ def _ball_clear(points, radii, count, zx, zy, zz, length, best, box_inv, box_hal
             return False
     n_box = box_inv.shape[0]
     for k in range(n_box + cyl_inv.shape[0]):
-        is_box = k < n_box
-        c = 0 if is_box else k - n_box
-        if is_box:
-            inv = box_inv[k]
-            hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
-            rad, hh = 0.0, 0.0
-        else:
-            inv = cyl_inv[c]
-            hx, hy, hz = 0.0, 0.0, 0.0
-            rad, hh = cyl_radius[c], cyl_half[c]
-        wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
-        wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
-        wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+        is_box, inv, hx, hy, hz, rad, hh = _convex_obstacle(k, box_inv, box_half, cyl_inv, cyl_radius, cyl_half)
+        wx, wy, wz = _local_direction(inv, dx, dy, dz)
         if convex_distance.path_least(is_box, inv, hx, hy, hz, rad, hh, cx, cy, cz, length, dx, dy, dz, wx, wy, wz,
                        best + bound) - bound < best:
             return False
@@ -232,20 +228,17 @@ def _slab_gap(inv, hx, hy, hz, ends, count, is_box):
 
 
 @_jit
-def _capsules_slab_clear(joints, link_radii, zx, zy, zz, length, best, box_inv, box_half, cyl_inv, cyl_half, ends):
+def _capsules_slab_clear(joints, link_radii, zx, zy, zz, length, best, box_inv, box_half, cyl_inv, cyl_radius,
+                         cyl_half, ends):
     """True when every capsule and the pad of a finger (``joints`` (J, 3) m, radii
     link_radii (J,) m, moved from there by -length * z) stay at least ``best`` (m) from
     every box and cylinder by the slabs between their faces (:func:`_slab_gap`: exact
     for a flat wall); ``ends`` (4, 3) is scratch."""
     n_links = joints.shape[0] - 1
     dx, dy, dz = -length * zx, -length * zy, -length * zz
-    n_box = box_inv.shape[0]
-    for k in range(n_box + cyl_inv.shape[0]):
-        is_box = k < n_box
-        inv = box_inv[k] if is_box else cyl_inv[k - n_box]
-        hx = box_half[k, 0] if is_box else 0.0
-        hy = box_half[k, 1] if is_box else 0.0
-        hz = box_half[k, 2] if is_box else cyl_half[k - n_box]
+    for k in range(box_inv.shape[0] + cyl_inv.shape[0]):
+        is_box, inv, hx, hy, hz, _, hh = _convex_obstacle(k, box_inv, box_half, cyl_inv, cyl_radius, cyl_half)
+        hz = hz if is_box else hh  # a cylinder: the slab of its height
         for j in range(n_links + 1):
             count = 0
             for e in range(2 if j < n_links else 1):
@@ -315,7 +308,7 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
                                          cyl_half) and not (
                 sphere_center.shape[0] == 0
                 and _capsules_slab_clear(joints, link_radii, zx, zy, zz, approach_distance, g, box_inv, box_half,
-                                         cyl_inv, cyl_half, ends)):
+                                         cyl_inv, cyl_radius, cyl_half, ends)):
             for m in range(k_pts):
                 u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
                 v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
@@ -347,24 +340,13 @@ def _capsules_gap(joints, link_radii, best, box_inv, box_half, sphere_center, sp
             best = min(best, g - sr - link_radii[j])
     n_box = box_inv.shape[0]
     for k in range(n_box + cyl_inv.shape[0]):
-        is_box = k < n_box
-        c = 0 if is_box else k - n_box
-        if is_box:
-            inv = box_inv[k]
-            hx, hy, hz = box_half[k, 0], box_half[k, 1], box_half[k, 2]
-            rad, hh = 0.0, 0.0
-        else:
-            inv = cyl_inv[c]
-            hx, hy, hz = 0.0, 0.0, 0.0
-            rad, hh = cyl_radius[c], cyl_half[c]
+        is_box, inv, hx, hy, hz, rad, hh = _convex_obstacle(k, box_inv, box_half, cyl_inv, cyl_radius, cyl_half)
         for j in range(n_links + 1):
             a = joints[j]
             r = link_radii[j]
             if j < n_links:
                 dx, dy, dz = joints[j + 1, 0] - a[0], joints[j + 1, 1] - a[1], joints[j + 1, 2] - a[2]
-                wx = inv[0, 0] * dx + inv[0, 1] * dy + inv[0, 2] * dz
-                wy = inv[1, 0] * dx + inv[1, 1] * dy + inv[1, 2] * dz
-                wz = inv[2, 0] * dx + inv[2, 1] * dy + inv[2, 2] * dz
+                wx, wy, wz = _local_direction(inv, dx, dy, dz)
                 g = convex_distance.convex_path_least(is_box, inv, hx, hy, hz, rad, hh, a[0], a[1], a[2],
                                                       dx, dy, dz, wx, wy, wz, best + r)
             else:
