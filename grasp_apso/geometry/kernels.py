@@ -228,6 +228,17 @@ def _segments(lengths, finger, ratio, distal, proximal, seg):
 
 
 @_jit
+def _link_point(coeff, m, seg, plane):
+    """Link point m (coeff (3, K): a combination of the planar segments seg (3, 2)) in
+    the object frame through the flexion plane (3, 3: base, ex, ey): (x, y, z) m."""
+    u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
+    v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
+    return (plane[0, 0] + u * plane[1, 0] + v * plane[2, 0],
+            plane[0, 1] + u * plane[1, 1] + v * plane[2, 1],
+            plane[0, 2] + u * plane[1, 2] + v * plane[2, 2])
+
+
+@_jit
 def _link_clearances(values, grid_origin, spacing, plane, seg, coeff, radii, points, clearance, k):
     """Link points of a finger (object frame) and their clearance, written to points[k]
     (K, 3) and clearance[k] (K,); returns the smallest clearance (m).
@@ -239,11 +250,7 @@ def _link_clearances(values, grid_origin, spacing, plane, seg, coeff, radii, poi
     inv = 1.0 / spacing
     best = np.inf
     for m in range(coeff.shape[1]):
-        u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
-        v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
-        x = plane[0, 0] + u * plane[1, 0] + v * plane[2, 0]
-        y = plane[0, 1] + u * plane[1, 1] + v * plane[2, 1]
-        z = plane[0, 2] + u * plane[1, 2] + v * plane[2, 2]
+        x, y, z = _link_point(coeff, m, seg, plane)
         points[k, m, 0] = x
         points[k, m, 1] = y
         points[k, m, 2] = z
@@ -416,10 +423,7 @@ def open_fingers(values, grid_origin, spacing, rot, trans, planes, lengths, rati
         _world_plane(rot, trans, planes, f // N_FINGERS, f, plane)
         _segments(lengths, f % N_FINGERS, ratio, distal0[f], proximal0[f], seg)
         for m in range(final_coeff.shape[1]):
-            u = final_coeff[0, m] * seg[0, 0] + final_coeff[1, m] * seg[1, 0] + final_coeff[2, m] * seg[2, 0]
-            v = final_coeff[0, m] * seg[0, 1] + final_coeff[1, m] * seg[1, 1] + final_coeff[2, m] * seg[2, 1]
-            for i in range(3):
-                points[k, m, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+            points[k, m, 0], points[k, m, 1], points[k, m, 2] = _link_point(final_coeff, m, seg, plane)
             clearance[k, m] = np.inf
         tip_gap[k] = _grid_distance(values, grid_origin[0], grid_origin[1], grid_origin[2], inv, spacing,
                                     points[k, last, 0], points[k, last, 1], points[k, last, 2])

@@ -39,7 +39,7 @@ import numba
 import numpy as np
 
 from . import convex_distance
-from .kernels import N_FINGERS, _grid_value, _segments, _world_plane
+from .kernels import N_FINGERS, _grid_value, _link_point, _segments, _world_plane
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -295,11 +295,7 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
         _world_plane(rot, trans, planes_palm, p, f, plane)
         _segments(lengths, f % N_FINGERS, ratio, distal0[f], proximal0[f], seg)
         for j in range(n_joints):
-            c = joint_cols[j]
-            u = coeff[0, c] * seg[0, 0] + coeff[1, c] * seg[1, 0] + coeff[2, c] * seg[2, 0]
-            v = coeff[0, c] * seg[0, 1] + coeff[1, c] * seg[1, 1] + coeff[2, c] * seg[2, 1]
-            for i in range(3):
-                joints[j, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+            joints[j, 0], joints[j, 1], joints[j, 2] = _link_point(coeff, joint_cols[j], seg, plane)
         g = _planes_path_gap(joints, joint_radii, n_joints, zx, zy, zz, approach_distance, planes, horizon)
         # obstacles: the ball around the joints, then (boxes and cylinders only) the
         # slabs of each capsule's sweep, then the link spheres
@@ -310,10 +306,7 @@ def finger_path_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0, pro
                 and _capsules_slab_clear(joints, link_radii, zx, zy, zz, approach_distance, g, box_inv, box_half,
                                          cyl_inv, cyl_radius, cyl_half, ends)):
             for m in range(k_pts):
-                u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
-                v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
-                for i in range(3):
-                    q[m, i] = plane[0, i] + u * plane[1, i] + v * plane[2, i]
+                q[m, 0], q[m, 1], q[m, 2] = _link_point(coeff, m, seg, plane)
             g = _spheres_path_gap(q, radii, k_pts, zx, zy, zz, approach_distance, g,
                                   no_planes, box_inv, box_half, sphere_center, sphere_radius,
                                   cyl_inv, cyl_radius, cyl_half, gc, gb)
@@ -437,11 +430,7 @@ def approach_object_gaps(rows, rot, trans, planes_palm, lengths, ratio, distal0,
         _segments(lengths, finger, ratio, distal0[f], proximal0[f], seg)
         best = cap
         for m in range(coeff.shape[1]):
-            u = coeff[0, m] * seg[0, 0] + coeff[1, m] * seg[1, 0] + coeff[2, m] * seg[2, 0]
-            v = coeff[0, m] * seg[0, 1] + coeff[1, m] * seg[1, 1] + coeff[2, m] * seg[2, 1]
-            qx = plane[0, 0] + u * plane[1, 0] + v * plane[2, 0]
-            qy = plane[0, 1] + u * plane[1, 1] + v * plane[2, 1]
-            qz = plane[0, 2] + u * plane[1, 2] + v * plane[2, 2]
+            qx, qy, qz = _link_point(coeff, m, seg, plane)
             t = approach_distance
             for _ in range(1000):  # bounded: each step advances at least min_step
                 if t < zone:
