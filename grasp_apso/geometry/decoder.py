@@ -446,11 +446,12 @@ def _close_rows(model, rows, rot, trans, planes, distal0, proximal0, d_span, p_s
             float(hand.coupling_ratio), np.ascontiguousarray(distal0).reshape(-1),
             np.ascontiguousarray(proximal0).reshape(-1))
     close = np.arange(r) if closing is None else np.flatnonzero(closing)
-    if close.size:
+    if close.size:  # without a scene every row, in order: no gather of the rows
         kernels.close_fingers(
             *grid, np.ascontiguousarray(d_span).reshape(-1), np.ascontiguousarray(p_span).reshape(-1),
             SWEEP_COEFF, model.sweep_radii, FINAL_COEFF, model.point_radii, settings.coarse_steps,
-            settings.refine_steps, settings.max_penetration, settings.tolerance, rows[close], close, *out)
+            settings.refine_steps, settings.max_penetration, settings.tolerance,
+            rows if closing is None else rows[close], close, *out)
     if close.size < r:
         stay = np.flatnonzero(~closing)
         kernels.open_fingers(*grid, FINAL_COEFF, rows[stay], stay, *out)
