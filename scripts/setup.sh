@@ -197,7 +197,7 @@ else
 fi
 
 # ---------------------------------------------------------------------------------------
-say "6/6 smoke test"
+say "6/6 smoke test (and the compiled kernels of the installed package and of the working tree)"
 # -I: the installed grasp_apso, not the source tree in the working directory. Planning a
 # tiny grasp compiles the numba kernels into the installed package's cache (about 5 s
 # after an install, then about 0.5 s), so the node's first request does not.
@@ -205,5 +205,12 @@ if ! "$VPY" -I -c "import rclpy; from grasp_apso_interfaces.srv import PlanGrasp
   cat "$LOG_DIR/smoke.log" >&2
   rm -rf "$STAMPS"   # make the next run redo every step
   fail "smoke test failed: rclpy / grasp_apso_interfaces do not import, or the installed planner cannot plan (stamps cleared; re-run, or 'make clean distclean')"
+fi
+# The demo, the tests and a node started with PYTHONPATH=<repo> run the working tree, whose
+# kernels numba caches beside its own sources (grasp_apso/**/__pycache__): compile those
+# too, so that their first request does not wait for the compiler (about 20 s).
+if ! (cd "$ROOT" && PYTHONPATH="$ROOT" "$VPY" -c "from grasp_apso.search.planner import warm_up; warm_up()") 2>"$LOG_DIR/smoke-tree.log"; then
+  cat "$LOG_DIR/smoke-tree.log" >&2
+  fail "smoke test of the working tree failed: the planner in $ROOT/grasp_apso cannot plan"
 fi
 say "ready in $((SECONDS - T_START)) s: $VPY (no 'source' needed; for ament_index lookups export AMENT_PREFIX_PATH=$VENV)"
