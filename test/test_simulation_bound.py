@@ -95,10 +95,13 @@ def test_plan_with_simulate_on_a_new_mesh_answers_within_its_time_bound(cache_di
     bound = 4.0
     t0 = time.monotonic()
     deadline = t0 + bound
-    result = plan(obj, options=PlanOptions(particles=20, iterations=200, max_grasps=3, simulate=True),
+    # the search and the verification take about 1 s: the rest is the wait for the decomposition
+    result = plan(obj, options=PlanOptions(particles=20, iterations=30, max_grasps=3, simulate=True),
                   rng=np.random.default_rng(19), should_stop=lambda: time.monotonic() >= deadline)
     elapsed = time.monotonic() - t0
-    assert elapsed < bound + 0.5, elapsed
+    print(f"plan with simulate on a new 12,288-triangle torus: {elapsed:.3f} s for a bound of {bound} s")
+    assert result.iterations_run == 30 and not result.cancelled          # the search was not cut
+    assert elapsed < bound + 0.25, elapsed                              # the wait was
     assert result.candidates and result.valid
     verdicts = [c.sim_result for c in result.candidates]
     assert set(verdicts) <= {SIM_NOT_RUN, SIM_DROPPED, SIM_HELD}
