@@ -338,10 +338,13 @@ class _Runs:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._runs: dict[str, _Run] = {}
+        self._pid = os.getpid()
         atexit.register(self.kill_all)
 
     def get_or_start(self, key: str, mesh: trimesh.Trimesh, settings: ConvexSettings, path: Path | None) -> _Run:
         with self._lock:
+            if self._pid != os.getpid():  # a forked worker: the runs (threads) stayed in the parent
+                self._runs, self._pid = {}, os.getpid()
             run = self._runs.get(key)
             if run is None:
                 run = self._runs[key] = _Run(key, mesh, settings, path, self._finished).start()
@@ -432,10 +435,14 @@ def decompose(obj, settings: ConvexSettings | None = None, use_disk: bool = True
     if stored is not None:
         return _remember(key, stored)
     run = _RUNS.get_or_start(key, mesh, settings, path)
-    while not run.done.wait(_POLL):
-        if (should_stop is not None and should_stop()) or (deadline is not None and time.monotonic() >= deadline):
+    # the run ends by itself within its two time bounds; the margin covers starting the processes
+    end = time.monotonic() + 2.0 * settings.timeout + 30.0
+    deadline = end if deadline is None else min(deadline, end)
+    while not run.done.is_set():
+        if (should_stop is not None and should_stop()) or time.monotonic() >= deadline:
             return Decomposition(None, "pending", "the convex decomposition of this new mesh did not end in time "
                                  "(it goes on in the background and is kept, so a repeat is simulated)")
+        run.done.wait(_POLL)
     return run.result
 
 
