@@ -120,3 +120,30 @@ def test_plan_whose_time_is_up_before_the_simulation_returns_unsimulated_candida
     assert result.candidates
     assert all(c.sim_result == SIM_NOT_RUN for c in result.candidates)
     assert "not simulated: the time bound was reached" in result.candidates_message
+
+
+def test_a_simulation_stopped_between_grasps_keeps_the_rest_unsimulated(cache_dir):
+    """The stop predicate turns true after the first simulated grasp: that one carries its
+    verdict, the others -1, and the message says where it stopped."""
+    from grasp_apso.model.builtin import builtin
+
+    options = PlanOptions(particles=20, iterations=5, max_grasps=3)
+    calls = [0]
+
+    def counting() -> bool:
+        calls[0] += 1
+        return False
+
+    plan(builtin("sphere"), options=options, rng=np.random.default_rng(5), should_stop=counting)
+    swarm_polls = calls[0]
+    calls[0] = 0
+
+    def after_one_grasp() -> bool:   # polls: the swarm's, the simulation's start, grasp 1, grasp 2 ...
+        calls[0] += 1
+        return calls[0] > swarm_polls + 2
+
+    result = plan(builtin("sphere"), options=PlanOptions(**{**options.__dict__, "simulate": True}),
+                  rng=np.random.default_rng(5), should_stop=after_one_grasp)
+    verdicts = sorted(c.sim_result for c in result.candidates)
+    assert len(verdicts) == 3 and verdicts.count(SIM_NOT_RUN) == 2 and verdicts[-1] in (SIM_DROPPED, SIM_HELD)
+    assert "simulation stopped at the time bound after 1 of" in result.candidates_message

@@ -134,5 +134,7 @@ def simulate_until_held(hand: HandModel, obj, pose: np.ndarray, checked: list, s
     if len(chosen) < max_grasps and note.startswith("simulation stopped"):
         tried = {id(c) for c, _ in held + dropped}
         rest = [checked[i] for i in order if id(checked[i]) not in tried][:max_grasps - len(chosen)]
+        if not chosen:  # none simulated: ranked as without the simulation
+            return rest, None, note
         return [c for c, _ in chosen] + rest, [r for _, r in chosen] + [None] * len(rest), note
     return [c for c, _ in chosen], [r for _, r in chosen], note
