@@ -1,6 +1,7 @@
 """Meshes with holes (issue 19, part 5): small holes are closed, so inside and outside are
-known and every contact carries the outward normal; a hole too large to close is left
-open with its faces wound outward.
+known and every contact carries the outward normal; a mesh whose holes are too large to
+close is refused, saying why; one whose hole cannot be closed (a rim that is not a simple
+loop) stays open, its faces wound outward.
 
 The reference is independent of the code under test: trimesh's face normals of the
 closed mesh the holes were cut from.
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from grasp_apso.errors import ObjectError
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.mesh_checks import MAX_HOLE_AREA, close_holes
 from grasp_apso.model.objects import from_arrays
@@ -106,14 +108,34 @@ def test_inward_wound_faces_with_a_hole_are_turned_outward():
     np.testing.assert_allclose(tops, np.tile([0.0, 0.0, 1.0], (len(tops), 1)), atol=1e-9)
 
 
-def test_a_hole_too_large_to_close_is_left_open_and_wound_outward():
+@pytest.mark.parametrize("wind", [1, -1])
+def test_a_hole_too_large_to_close_is_refused_saying_why(wind):
     sphere = builtin("sphere").mesh
     upper = np.flatnonzero(np.asarray(sphere.triangles_center)[:, 2] > 0.0)   # a half shell: the cap adds ~50 %
-    half = np.delete(sphere.faces, upper, axis=0)[:, ::-1]                  # and wound inward
-    obj = from_arrays(sphere.vertices, half)
-    assert not obj.watertight
-    mesh = obj.mesh
-    outward = np.einsum("ij,ij->i", np.asarray(mesh.face_normals), np.asarray(mesh.triangles_center))
-    assert np.all(outward > 0.0)                                         # normals point away from the centre
-    assert not close_holes(mesh.copy())                                 # the rule that kept it open
-    assert MAX_HOLE_AREA < 0.45
+    half = np.delete(sphere.faces, upper, axis=0)[:, ::wind]
+    with pytest.raises(ObjectError, match=r"mesh: not closed, and its holes are too large to close .*would add \d+%.* at most "
+                                          r"45%.*send a closed mesh"):
+        from_arrays(sphere.vertices, half)
+    assert MAX_HOLE_AREA == 0.45
+
+
+def _fish_with_a_fin():
+    """The fish with one face removed and a fin on an edge (three faces on it): its hole's
+    rim is not a simple loop, so it stays open."""
+    fish = builtin("fish").mesh
+    faces = np.asarray(fish.faces)[1:]
+    a, b = faces[0][0], faces[0][1]
+    vertices = np.vstack([fish.vertices, np.asarray(fish.vertices)[[a, b]].mean(axis=0) + [0.0, 0.0, 0.01]])
+    return fish, vertices, np.vstack([faces, [[a, b, len(vertices) - 1]]])
+
+
+@pytest.mark.parametrize("wind", [1, -1])
+def test_an_open_mesh_that_cannot_be_closed_is_wound_outward(wind):
+    fish, vertices, faces = _fish_with_a_fin()
+    obj = from_arrays(vertices, faces[:, ::wind])
+    assert not obj.watertight and not close_holes(obj.mesh.copy())
+    centres = np.asarray(obj.mesh.triangles_center)
+    on_fish = np.abs(trimesh.proximity.signed_distance(fish, centres)) < 1e-6      # the fin aside
+    reference = _reference_normals(fish, centres[on_fish])
+    agree = np.einsum("ij,ij->i", np.asarray(obj.mesh.face_normals)[on_fish], reference) > 0.9
+    assert agree.mean() > 0.99

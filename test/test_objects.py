@@ -216,9 +216,12 @@ def test_duplicate_and_degenerate_faces_are_removed() -> None:
 
 def test_open_mesh_takes_centre_of_mass_from_hull() -> None:
     fish = builtin("fish").mesh
-    # the lower half: a hole too large to close (issue 19: small holes are closed)
-    lower = fish.faces[np.asarray(fish.triangles_center)[:, 2] < 0.0]
-    opened = from_arrays(fish.vertices, lower)
+    # a hole whose rim is not a simple loop (a fin on one of its edges) stays open (issue
+    # 19: other small holes are closed, large ones refused)
+    faces = np.asarray(fish.faces)[1:]
+    a, b = faces[0][0], faces[0][1]
+    vertices = np.vstack([fish.vertices, np.asarray(fish.vertices)[[a, b]].mean(axis=0) + [0.0, 0.0, 0.01]])
+    opened = from_arrays(vertices, np.vstack([faces, [[a, b, len(vertices) - 1]]]))
     assert not opened.watertight
     hull_com = opened.mesh.convex_hull.center_mass
     np.testing.assert_allclose(opened.center_of_mass, hull_com, atol=1e-9)

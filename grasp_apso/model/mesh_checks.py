@@ -255,9 +255,10 @@ def process_mesh(vertices: np.ndarray, triangles: np.ndarray) -> tuple[trimesh.T
 # --------------------------------------------------------------------------------------
 
 #: Holes are closed when the caps that close them add at most this share of the mesh's
-#: area: a scan's holes, a box missing a face (20 %); a half shell (a bowl without
-#: thickness, about 50 %) stays open.
-MAX_HOLE_AREA: float = 0.25
+#: area: a scan's holes, its unseen bottom, a box missing a face (20 % for a cube, 43 % for
+#: a cereal box missing a large side). A mesh with larger holes (a half shell without
+#: thickness: 50 %) is refused (:func:`check_holes`): its inside is unknown.
+MAX_HOLE_AREA: float = 0.45
 
 
 def _boundary_loops(mesh: trimesh.Trimesh) -> list[np.ndarray] | None:
@@ -299,6 +300,36 @@ def _fan_caps(mesh: trimesh.Trimesh) -> None:
     mesh.faces = np.vstack([np.asarray(mesh.faces)] + faces)
 
 
+def hole_area_share(mesh: trimesh.Trimesh) -> float | None:
+    """The area that fans over the holes' rims would add, as a share of the mesh's area;
+    0 for a closed mesh, None when the rims are not simple loops."""
+    loops = _boundary_loops(mesh)
+    if loops is None:
+        return None
+    vertices = np.asarray(mesh.vertices)
+    added = 0.0
+    for loop in loops:
+        centre = vertices[loop].mean(axis=0)
+        spokes = np.cross(vertices[loop] - centre, vertices[np.roll(loop, -1)] - centre)
+        added += 0.5 * float(np.linalg.norm(spokes, axis=1).sum())
+    return added / max(float(mesh.area), 1e-30)
+
+
+def check_holes(mesh: trimesh.Trimesh, watertight: bool) -> None:
+    """Refuse a mesh whose holes are too large to close (ObjectError naming ``mesh``):
+    contacts need the outward side of the surface, and with such holes the inside of the
+    object is unknown. Holes whose rims touch themselves (non-manifold edges) are left as
+    they are, open."""
+    if watertight:
+        return
+    share = hole_area_share(mesh)
+    if share is not None and share > MAX_HOLE_AREA:
+        raise ObjectError(
+            f"mesh: not closed, and its holes are too large to close (closing them would add {share:.0%} to its "
+            f"area, at most {MAX_HOLE_AREA:.0%}): which side is outside is unknown, so contact normals would be "
+            "guesses; send a closed mesh (fill the holes of the scan)")
+
+
 def close_holes(mesh: trimesh.Trimesh, max_area: float = MAX_HOLE_AREA) -> bool:
     """Close the holes of an open mesh, in place, when they are small.
 
@@ -322,13 +353,14 @@ def close_holes(mesh: trimesh.Trimesh, max_area: float = MAX_HOLE_AREA) -> bool:
 
 
 def _orient_open(mesh: trimesh.Trimesh) -> None:
-    """Wind an open mesh consistently and outward, in place: outward is where the
-    volume of the mesh closed by its holes' caps comes out positive."""
+    """Wind an open mesh consistently and outward, in place: outward is where the signed
+    volume of the mesh (closed by its holes' caps when they can be) comes out positive."""
     trimesh.repair.fix_winding(mesh)
     if not mesh.is_winding_consistent:
         return
     capped = mesh.copy()
-    if close_holes(capped, max_area=np.inf) and capped.is_watertight and capped.volume < 0.0:
+    close_holes(capped, max_area=np.inf)
+    if float(capped.volume) < 0.0:
         mesh.invert()
 
 
