@@ -10,7 +10,7 @@ Rerunnable, not a test::
 For each object:
 
 * prep: ``make_grasp_model(hand, obj)`` with the grid cache cleared
-  (``grasp_apso.geometry.sdf.GRID_CACHE``), i.e. the cold grid build a first plan on a new mesh pays;
+  (the named cache ``"sdf_grid"`` of ``grasp_apso.cache``), i.e. the cold grid build a first plan on a new mesh pays;
   the best of ``--prep-runs`` runs (least disturbed by other processes);
 * decode: ``decode(model, x)`` on GRG-like batches (random wrist angles and pivots, flexion
   pre-shapes in the lower third of their range, standoff offset 0..2 cm; seeded), after
@@ -39,7 +39,7 @@ if str(REPO_ROOT) not in sys.path:
 import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
-from grasp_apso.geometry import sdf as sdf_module  # noqa: E402
+from grasp_apso.cache import clear_caches  # noqa: E402
 from grasp_apso.geometry.decoder import N_DIMS, STANDOFF_INDEX, decode, make_grasp_model  # noqa: E402
 from grasp_apso.model.hand import load_hand  # noqa: E402
 from grasp_apso.model.objects import from_arrays
@@ -68,7 +68,7 @@ def time_prep(hand, obj, runs: int):
     times = []
     model = None
     for _ in range(runs):
-        sdf_module.GRID_CACHE.clear()
+        clear_caches("sdf_grid")
         t0 = time.perf_counter()
         model = make_grasp_model(hand, obj)
         times.append(time.perf_counter() - t0)

@@ -16,7 +16,7 @@ Measures (all with ``grasp_apso.search.planner.plan``, ``GraspResult.planning_ti
   sphere, median of ``--repeats`` plans;
 * mesh triangles, 1k to 100k: spheres of 5 cm diameter (trimesh icospheres with 3..6
   subdivisions and a 9,600-triangle UV sphere); object construction (validation),
-  preparation (signed-distance grid, ``grasp_apso.geometry.sdf.GRID_CACHE`` cleared first), the first
+  preparation (signed-distance grid, the named cache ``"sdf_grid"`` of ``grasp_apso.cache`` cleared first), the first
   plan (includes the python-fcl BVH build) and later plans, timed separately.
 
 Prints the tables (Markdown) and writes ``bench/results/planner.json`` and

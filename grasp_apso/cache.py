@@ -7,21 +7,31 @@ kept at all (it is returned to the caller and forgotten), so one huge object can
 pin the memory. :func:`approximate_nbytes` estimates the size of an object made of numpy
 arrays (and trimesh meshes, dataclasses, tuples and dicts of them).
 
-Used by the node's object cache (:mod:`grasp_apso.ros.worker`); the planner's caches
-(signed-distance grids, BVHs) can switch to it.
+Every cache of data derived from an object lives here, as a *named cache* of the
+registry (:func:`cached`, :func:`named_cache`): keyed by the object's mesh hash (plus the
+options the value depends on), bounded in entries and bytes by :data:`CACHE_LIMITS` (the
+one place for those bounds). No other module keeps a module-level cache of object data
+(``test/test_cache.py`` reads the sources to check it). Values that live on disk (the
+convex decompositions) are kept under :func:`cache_root`.
+
+:class:`PerThreadCache` keeps per-thread python-fcl objects (moved by ``setTransform``,
+so never shared between threads), at most a few per thread.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 import threading
 from collections import OrderedDict
-from typing import Any, Callable, Generic, Hashable, TypeVar
+from pathlib import Path
+from typing import Any, Callable, Generic, Hashable, Mapping, TypeVar
 
 import numpy as np
 
-__all__ = ["BoundedCache", "CacheStats", "PerThreadCache", "approximate_nbytes"]
+__all__ = ["BoundedCache", "CacheLimit", "CacheStats", "CACHE_LIMITS", "PerThreadCache", "approximate_nbytes",
+           "cache_root", "cache_stats", "cached", "clear_caches", "named_cache", "set_cache_root"]
 
 V = TypeVar("V")
 
@@ -95,9 +105,10 @@ class BoundedCache(Generic[V]):
             self._hits += 1
             return item[0]
 
-    def put(self, key: Hashable, value: V) -> V:
-        """Store ``value`` under ``key`` (evicting as needed); returns ``value``."""
-        size = max(1, int(self._size_of(value)))
+    def put(self, key: Hashable, value: V, nbytes: int | None = None) -> V:
+        """Store ``value`` under ``key`` (evicting as needed); returns ``value``.
+        ``nbytes``: its size when known (else ``size_of(value)``)."""
+        size = max(1, int(self._size_of(value) if nbytes is None else nbytes))
         with self._lock:
             old = self._items.pop(key, None)
             if old is not None:
@@ -166,3 +177,106 @@ class PerThreadCache(Generic[V]):
             entry = cache[id(source)] = (source, build(source))
         return entry[1]
 
+
+
+# ------------------------------------------------------------------ the named caches
+@dataclasses.dataclass(frozen=True)
+class CacheLimit:
+    """Bounds of one named cache: at most ``entries`` values and ``nbytes`` bytes."""
+
+    entries: int
+    nbytes: int
+
+
+_MB = 1024 * 1024
+
+#: The bounds of every object-derived cache, one place. Sizes: a signed-distance grid
+#: and its normal-spread grid are 240,000 float64 nodes (about 2 MB) each for the default
+#: node budget; a BVH about 300 bytes per triangle; convex parts a few kB per part.
+CACHE_LIMITS: Mapping[str, CacheLimit] = {
+    "sdf_grid": CacheLimit(8, 256 * _MB),        # geometry.sdf: (mesh hash, grid options)
+    "normal_spread": CacheLimit(8, 256 * _MB),   # geometry.normal_spread: (mesh hash, options, radius)
+    "mesh_bvh": CacheLimit(8, 128 * _MB),        # geometry.collision: mesh hash
+    "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
+}
+
+_REGISTRY: dict[str, BoundedCache] = {}
+_REGISTRY_LOCK = threading.Lock()
+
+
+def named_cache(name: str) -> BoundedCache:
+    """The process-wide cache called ``name`` (one of :data:`CACHE_LIMITS`), created on
+    first use. KeyError for a name without limits."""
+    with _REGISTRY_LOCK:
+        cache = _REGISTRY.get(name)
+        if cache is None:
+            limit = CACHE_LIMITS[name]
+            cache = _REGISTRY[name] = BoundedCache(limit.entries, limit.nbytes)
+        return cache
+
+
+def cached(name: str, key: Hashable, build: Callable[[], V],
+           nbytes: int | Callable[[V], int] | None = None) -> V:
+    """The value of ``key`` in the named cache ``name``, or ``build()`` stored there.
+
+    Parameters
+    ----------
+    name : str
+        A name of :data:`CACHE_LIMITS`.
+    key : hashable
+        Starts with the object's mesh hash; then whatever else the value depends on.
+    build : callable() -> value
+        Runs outside the lock (two threads may build the same value once each).
+    nbytes : int or callable(value) -> int, optional
+        The value's size in bytes when :func:`approximate_nbytes` cannot tell (objects
+        of compiled libraries, such as python-fcl's BVH).
+    """
+    cache = named_cache(name)
+    value = cache.get(key)
+    if value is None:
+        value = build()
+        size = nbytes(value) if callable(nbytes) else nbytes
+        cache.put(key, value, size)
+    return value
+
+
+def cache_stats() -> dict[str, CacheStats]:
+    """Counters of every named cache created so far."""
+    with _REGISTRY_LOCK:
+        caches = dict(_REGISTRY)
+    return {name: cache.stats() for name, cache in caches.items()}
+
+
+def clear_caches(*names: str) -> None:
+    """Empty the named caches ``names`` (all when none is given); disk caches stay."""
+    with _REGISTRY_LOCK:
+        caches = [c for n, c in _REGISTRY.items() if not names or n in names]
+    for cache in caches:
+        cache.clear()
+
+
+# ------------------------------------------------------------------ the disk caches
+_ROOT: list[Path] = []  # the folder set by set_cache_root (the node's cache_directory)
+
+
+def set_cache_root(path: str | os.PathLike | None) -> None:
+    """Use ``path`` as the root of the disk caches (None or "" = the default, see
+    :func:`cache_root`). The node calls it with its ``cache_directory`` parameter."""
+    with _REGISTRY_LOCK:
+        _ROOT.clear()
+        if path:
+            _ROOT.append(Path(path).expanduser())
+
+
+def cache_root() -> Path:
+    """Root folder of the disk caches: the one set by :func:`set_cache_root`, else
+    ``$GRASP_APSO_CACHE``, else ``$XDG_CACHE_HOME/grasp_apso``, else
+    ``~/.cache/grasp_apso``. Not created here."""
+    with _REGISTRY_LOCK:
+        if _ROOT:
+            return _ROOT[0]
+    if os.environ.get("GRASP_APSO_CACHE"):
+        return Path(os.environ["GRASP_APSO_CACHE"]).expanduser()
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]).expanduser() / "grasp_apso"
+    return Path.home() / ".cache" / "grasp_apso"

@@ -171,6 +171,11 @@ TUNABLES: tuple[Tunable, ...] = (
     _t("min_position_gap", float, 0.015, "Two candidates are distinct when their wrist positions "
        "differ by at least this, or their orientations by min_orientation_gap.", 0.0, 0.5,
        unit="m", scope="candidates"),
+    # --- simulation ------------------------------------------------------------------
+    _t("decomposition_timeout", float, 60.0, "Longest the convex decomposition of a new non-convex mesh "
+       "(CoACD, once per mesh, kept on disk) may run in its own process, then again with coarser settings; "
+       "a request never waits for it past its own time bound (its candidates are then not simulated).",
+       0.0, 3600.0, lo_open=True, unit="s", scope="simulation"),
     # --- node: resources and security ----------------------------------------------
     _t("hand_description", str, "", "Path of the hand description YAML; empty = the hand shipped "
        "in the package.", scope="node", read_only=True),
@@ -188,6 +193,9 @@ TUNABLES: tuple[Tunable, ...] = (
     _t("grasp_database", str, "", "Path of a grasp database written by grasp_apso_batch: requests "
        "for a stored object and hand are answered from it when a stored grasp survives the "
        "request's scene; empty = none.", scope="node", read_only=True),
+    _t("cache_directory", str, "", "Folder of the on-disk caches (convex decompositions); empty = "
+       "$GRASP_APSO_CACHE, else $XDG_CACHE_HOME/grasp_apso, else ~/.cache/grasp_apso.", scope="node",
+       read_only=True),
     _t("plan_timeout", float, 60.0, "Seconds a request may spend in the worker (reading, validation, "
        "preparation, planning); it is answered 'timed out' naming the stage. 0 = no limit.",
        0.0, 86400.0, unit="s", scope="node"),

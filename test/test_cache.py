@@ -43,3 +43,113 @@ def test_per_thread_cache_builds_once_per_thread_and_object():
     cache.get(b, build)
     cache.get(c, build)                                  # over 2 entries: a (oldest) is dropped
     assert cache.get(a, build) is not first and len(built) == 5
+
+
+# ------------------------------------------------------------ one mechanism (issue 19)
+import ast  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from grasp_apso.cache import CACHE_LIMITS, cache_root, cached, clear_caches, named_cache, set_cache_root  # noqa: E402
+
+PKG = Path(__file__).resolve().parents[1] / "grasp_apso"
+#: Module-level caches allowed outside cache.py, with why: keyed by a name or a file,
+#: not by object data.
+ALLOWED_LRU = {("model/builtin.py", "_builtin_cached"),  # the four built-in objects, by name
+               ("model/hand.py", "_load_hand_cached")}  # hand description files, by path and mtime
+_CONTAINERS = {"dict", "OrderedDict", "defaultdict", "BoundedCache", "WeakValueDictionary", "WeakKeyDictionary",
+               "LRUCache", "TTLCache"}
+
+
+def _module_level_caches(path: Path) -> list[str]:
+    """Module-level statements of ``path`` that hold a cache: an empty mutable mapping (or
+    a BoundedCache) assigned to a name, or a function memoised by functools."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    rel = path.relative_to(PKG).as_posix() if path.is_relative_to(PKG) else path.name
+    found = []
+    for node in tree.body:
+        value = node.value if isinstance(node, (ast.Assign, ast.AnnAssign)) else None
+        if value is not None:
+            empty_dict = isinstance(value, ast.Dict) and not value.keys
+            call = value.func.attr if isinstance(value, ast.Call) and isinstance(value.func, ast.Attribute) else (
+                value.func.id if isinstance(value, ast.Call) and isinstance(value.func, ast.Name) else "")
+            if empty_dict or call in _CONTAINERS:
+                found.append(f"{rel}:{node.lineno} {ast.unparse(node)[:80]}")
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for deco in node.decorator_list:
+                text = ast.unparse(deco)
+                if ("lru_cache" in text or text in ("cache", "functools.cache")) and (rel, node.name) not in ALLOWED_LRU:
+                    found.append(f"{rel}:{node.lineno} @{text} {node.name}")
+    return found
+
+
+def test_no_module_outside_cache_py_keeps_a_cache_of_object_data():
+    modules = [p for p in PKG.rglob("*.py") if "__pycache__" not in p.parts and p.name != "cache.py"]
+    assert len(modules) > 50
+    offenders = [line for p in modules for line in _module_level_caches(p)]
+    assert offenders == [], "object-derived caches go through grasp_apso/cache.py:\n" + "\n".join(offenders)
+
+
+def test_the_checker_finds_the_old_caches(tmp_path):
+    """The AST check above can fail: the five caches issue 19 replaced are each found."""
+    fake = tmp_path / "old_caches.py"
+    fake.write_text(
+        '"""x"""\nimport functools\nfrom collections import OrderedDict\nfrom .cache import BoundedCache\n'
+        "GRID_CACHE: 'BoundedCache' = BoundedCache(max_entries=8, max_bytes=1)\n"
+        "_BVH_CACHE: 'OrderedDict[str, object]' = OrderedDict()\n"
+        "_MEMORY = {}\n"
+        "@functools.lru_cache(maxsize=8)\ndef object_bvh(obj):\n    return obj\n")
+    assert len(_module_level_caches(fake)) == 4
+
+
+def test_named_caches_keep_their_byte_bounds():
+    assert set(CACHE_LIMITS) >= {"sdf_grid", "normal_spread", "mesh_bvh", "convex_parts"}
+    clear_caches("sdf_grid")
+    limit = CACHE_LIMITS["sdf_grid"]
+    items = limit.nbytes // 24 + 1            # three of these (8 bytes each) exceed the bound
+    built = []
+
+    def build(i):
+        built.append(i)
+        return np.zeros(items)
+
+    for i in range(4):
+        cached("sdf_grid", (f"test-hash-{i}",), lambda i=i: build(i))
+        stats = named_cache("sdf_grid").stats()
+        assert stats.nbytes <= limit.nbytes and stats.entries <= limit.entries
+    assert named_cache("sdf_grid").stats().entries == 2          # evicted by bytes, not entries
+    cached("sdf_grid", ("test-hash-3",), lambda: build(99))      # the most recent one is kept
+    assert built == [0, 1, 2, 3]
+    # a size given by the caller (objects numpy cannot measure) is the one counted
+    clear_caches("mesh_bvh")
+    cached("mesh_bvh", "test-hash-bvh", lambda: object(), nbytes=12345)
+    assert named_cache("mesh_bvh").stats().nbytes == 12345
+    clear_caches("sdf_grid", "mesh_bvh")
+
+
+def test_planner_caches_are_keyed_by_mesh_hash_and_bounded():
+    from grasp_apso.geometry.collision import object_bvh
+    from grasp_apso.model.builtin import builtin
+    from grasp_apso.search.planner import prepare
+
+    cube = builtin("cube")
+    clear_caches("mesh_bvh")
+    assert object_bvh(cube) is object_bvh(cube)
+    assert named_cache("mesh_bvh").stats().entries == 1 and cube.mesh_hash in named_cache("mesh_bvh")
+    prepare(cube)
+    for name in ("sdf_grid", "normal_spread"):
+        stats = named_cache(name).stats()
+        assert 1 <= stats.entries <= CACHE_LIMITS[name].entries and stats.nbytes <= CACHE_LIMITS[name].nbytes
+
+
+def test_cache_root_follows_the_setting_then_the_environment(tmp_path, monkeypatch):
+    monkeypatch.delenv("GRASP_APSO_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_root() == tmp_path / "xdg" / "grasp_apso"
+    monkeypatch.setenv("GRASP_APSO_CACHE", str(tmp_path / "env"))
+    assert cache_root() == tmp_path / "env"
+    set_cache_root(tmp_path / "param")
+    try:
+        assert cache_root() == tmp_path / "param"
+    finally:
+        set_cache_root(None)
+    assert cache_root() == tmp_path / "env"

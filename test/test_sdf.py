@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso.geometry import sdf as sdf_module
+from grasp_apso.cache import CACHE_LIMITS, named_cache
 from grasp_apso.geometry.sdf import SignedDistanceGrid, build_sdf_grid, cached_sdf_grid
 
 R_SPHERE = 0.025
@@ -231,5 +231,6 @@ def test_cache_returns_the_same_object_for_the_same_key(grids) -> None:
     assert cached_sdf_grid(mesh, key, **SMALL) is other
     assert cached_sdf_grid(mesh, key, **GRID_KWARGS) is first
     # the cache is bounded
-    assert len(sdf_module.GRID_CACHE) <= sdf_module.GRID_CACHE.max_entries
-    assert sdf_module.GRID_CACHE.stats().nbytes <= sdf_module.GRID_CACHE.max_bytes
+    grid_cache = named_cache("sdf_grid")
+    assert len(grid_cache) <= CACHE_LIMITS["sdf_grid"].entries
+    assert grid_cache.stats().nbytes <= CACHE_LIMITS["sdf_grid"].nbytes

@@ -128,6 +128,7 @@ def options_document(options: PlanOptions, hand_name: str, table: bool,
     object frame, do not depend on it).
     """
     plan = asdict(options)
+    plan.pop("decomposition_timeout", None)  # a time bound of the simulation, not what the grasps are
     if plan.get("wrist_position") is not None:
         plan["wrist_position"] = [float(v) for v in plan["wrist_position"]]
     doc = {"plan": plan, "hand": hand_name, "table": bool(table),

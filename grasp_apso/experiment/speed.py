@@ -29,12 +29,9 @@ def _sweep_mesh(kind: str, size: int):
 
 
 def _clear_caches() -> None:
-    from ..search import planner
-    from ..geometry import sdf
+    from ..cache import clear_caches
 
-    sdf.GRID_CACHE.clear()
-    with planner._BVH_LOCK:
-        planner._BVH_CACHE.clear()
+    clear_caches("sdf_grid", "mesh_bvh")
 
 
 def run_speed(speed: SpeedConfig, hand=None, per_object: dict | None = None,

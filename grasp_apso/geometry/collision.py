@@ -18,7 +18,7 @@ import fcl
 import numpy as np
 import trimesh
 
-from ..cache import PerThreadCache
+from ..cache import PerThreadCache, cached
 from . import kernels
 
 FINGER_PAIRS: tuple[tuple[int, int], ...] = tuple(combinations(range(5), 2))
@@ -103,6 +103,19 @@ def mesh_bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
     bvh.addSubModel(np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int32))
     bvh.endModel()
     return bvh
+
+
+#: Approximate bytes of a python-fcl BVH per triangle (OBBRSS nodes, vertices, faces).
+BVH_BYTES_PER_TRIANGLE = 300
+
+
+def object_bvh(obj) -> fcl.BVHModel:
+    """The BVH of an object's mesh (object frame), built once per mesh: the named cache
+    ``"mesh_bvh"`` of :mod:`grasp_apso.cache`, keyed by ``obj.mesh_hash``. Shared between
+    threads (only geometry; the moved collision objects are per thread)."""
+    mesh = obj.mesh
+    return cached("mesh_bvh", obj.mesh_hash, lambda: mesh_bvh(mesh),
+                  nbytes=BVH_BYTES_PER_TRIANGLE * len(mesh.faces) + 24 * len(mesh.vertices))
 
 
 def capsule_frames(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -40,11 +40,11 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..cache import BoundedCache
+from ..cache import cached
 from . import kernels
 from .sdf import SignedDistanceGrid
 
-__all__ = ["NormalSpreadGrid", "build_normal_spread_grid", "cached_normal_spread_grid", "SPREAD_CACHE",
+__all__ = ["NormalSpreadGrid", "build_normal_spread_grid", "cached_normal_spread_grid",
            "DEFAULT_RADIUS", "NEIGHBOURS", "BAND_CELLS", "SAMPLE_DENSITY"]
 
 #: Neighbourhood radius (m), as :data:`grasp_apso.quality.robustness.DEFAULT_RADIUS`.
@@ -144,13 +144,10 @@ def build_normal_spread_grid(mesh: trimesh.Trimesh, sdf: SignedDistanceGrid, rad
     return NormalSpreadGrid(origin=origin, spacing=float(sdf.spacing), values=values)
 
 
-#: Spread grids by (mesh hash, distance-grid options, radius): as the distance grids.
-SPREAD_CACHE: "BoundedCache[NormalSpreadGrid]" = BoundedCache(max_entries=8, max_bytes=256 * 1024 * 1024)
-
-
 def cached_normal_spread_grid(mesh: trimesh.Trimesh, sdf: SignedDistanceGrid, key: str,
                               radius: float = DEFAULT_RADIUS, **sdf_kwargs) -> NormalSpreadGrid:
     """:func:`build_normal_spread_grid` memoised by ``key`` (the mesh hash), the options
-    ``sdf_kwargs`` ``sdf`` was built with, and ``radius``."""
+    ``sdf_kwargs`` ``sdf`` was built with, and ``radius``, in the named cache
+    ``"normal_spread"`` (:mod:`grasp_apso.cache`)."""
     cache_key = (key, tuple(sorted(sdf_kwargs.items())), float(radius))
-    return SPREAD_CACHE.get_or_create(cache_key, lambda: build_normal_spread_grid(mesh, sdf, radius))
+    return cached("normal_spread", cache_key, lambda: build_normal_spread_grid(mesh, sdf, radius))

@@ -17,7 +17,8 @@ Building the grid (:func:`build_sdf_grid`):
 
 Outside the grid box, the distance is the value at the nearest box point plus the
 distance to the box, an over-estimate that only matters far from the object, where
-nothing is decided. Negative values are inside the object. Grids are cached by mesh hash.
+nothing is decided. Negative values are inside the object. Grids are cached by mesh hash
+(:func:`cached_sdf_grid`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..cache import BoundedCache
+from ..cache import cached
 from . import kernels
 
 @dataclass(frozen=True)
@@ -279,13 +280,8 @@ def build_sdf_grid(
     return SignedDistanceGrid(origin=origin, spacing=spacing, values=grid)
 
 
-#: Signed-distance grids by (mesh hash, options): at most 8, at most 256 MB (a 10k-triangle
-#: mesh's grid is a few MB; the bound keeps a stream of distinct large meshes from growing
-#: the process).
-GRID_CACHE: "BoundedCache[SignedDistanceGrid]" = BoundedCache(max_entries=8, max_bytes=256 * 1024 * 1024)
-
-
 def cached_sdf_grid(mesh: trimesh.Trimesh, key: str, **kwargs) -> SignedDistanceGrid:
-    """:func:`build_sdf_grid` memoised by ``key`` (the mesh hash) and the options."""
+    """:func:`build_sdf_grid` memoised by ``key`` (the mesh hash) and the options, in the
+    named cache ``"sdf_grid"`` (:mod:`grasp_apso.cache`, bounded in entries and bytes)."""
     cache_key = (key, tuple(sorted(kwargs.items())))
-    return GRID_CACHE.get_or_create(cache_key, lambda: build_sdf_grid(mesh, **kwargs))
+    return cached("sdf_grid", cache_key, lambda: build_sdf_grid(mesh, **kwargs))

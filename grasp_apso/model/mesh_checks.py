@@ -2,7 +2,8 @@
 
 :func:`check_raw_mesh` checks the arrays a caller sent (emptiness, shapes, finiteness,
 indices, size limits, zero-area triangles, flatness) and :func:`process_mesh` builds the
-trimesh (duplicates merged, degenerate faces dropped, closed meshes wound outward).
+trimesh (duplicates merged, degenerate faces dropped, small holes closed, closed meshes
+wound outward, open ones wound consistently and outward as far as their holes allow).
 Every failure raises :class:`~grasp_apso.errors.ObjectError` naming the field (``mesh:``).
 """
 
@@ -241,8 +242,126 @@ def process_mesh(vertices: np.ndarray, triangles: np.ndarray) -> tuple[trimesh.T
     mesh.remove_unreferenced_vertices()
     if len(mesh.faces) == 0:
         raise ObjectError("mesh: degenerate (all triangles have zero area)")
+    if not mesh.is_watertight:
+        close_holes(mesh)
     watertight = bool(mesh.is_watertight) and _orient_outward(mesh)
+    if not watertight and not mesh.is_watertight:
+        _orient_open(mesh)
     return mesh, watertight
+
+
+# --------------------------------------------------------------------------------------
+# Holes (scans): closed when small, so that inside and outside, and the normals, are known
+# --------------------------------------------------------------------------------------
+
+#: Holes are closed when the caps that close them add at most this share of the mesh's
+#: area: a scan's holes, its unseen bottom, a box missing a face (20 % for a cube, 43 % for
+#: a cereal box missing a large side). A mesh with larger holes (a half shell without
+#: thickness: 50 %) is refused (:func:`check_holes`): its inside is unknown.
+MAX_HOLE_AREA: float = 0.45
+
+
+def _boundary_loops(mesh: trimesh.Trimesh) -> list[np.ndarray] | None:
+    """The holes' rims as closed loops of vertex indices, each in the direction its
+    faces run along it; None when the rims touch themselves (not simple loops)."""
+    edges = np.asarray(mesh.edges)
+    single = trimesh.grouping.group_rows(np.asarray(mesh.edges_sorted), require_count=1)
+    if len(single) == 0:
+        return []
+    directed = edges[np.asarray(single).reshape(-1)]
+    starts, counts = np.unique(directed[:, 0], return_counts=True)
+    if np.any(counts > 1) or set(starts.tolist()) != set(directed[:, 1].tolist()):
+        return None
+    # every rim vertex starts one edge and ends one: the edges form disjoint cycles
+    following = dict(zip(directed[:, 0].tolist(), directed[:, 1].tolist()))
+    loops = []
+    while following:
+        start, current = following.popitem()
+        loop = [start]
+        while current != start:  # each step removes an edge: bounded
+            loop.append(current)
+            current = following.pop(current)
+        loops.append(np.array(loop, dtype=np.int64))
+    return loops
+
+
+def _fan_caps(mesh: trimesh.Trimesh) -> None:
+    """Close every simple boundary loop with a fan of triangles around a new vertex at its
+    centroid, wound against the rim's faces (the winding stays consistent); in place.
+    Nothing when the rims are not simple loops."""
+    loops = _boundary_loops(mesh)
+    if not loops:
+        return
+    vertices = np.asarray(mesh.vertices)
+    centres = np.array([vertices[loop].mean(axis=0) for loop in loops])
+    faces = [np.stack([np.roll(loop, -1), loop, np.full(len(loop), len(vertices) + k)], axis=1)
+             for k, loop in enumerate(loops)]
+    mesh.vertices = np.vstack([vertices, centres])
+    mesh.faces = np.vstack([np.asarray(mesh.faces)] + faces)
+
+
+def hole_area_share(mesh: trimesh.Trimesh) -> float | None:
+    """The area that fans over the holes' rims would add, as a share of the mesh's area;
+    0 for a closed mesh, None when the rims are not simple loops."""
+    loops = _boundary_loops(mesh)
+    if loops is None:
+        return None
+    vertices = np.asarray(mesh.vertices)
+    added = 0.0
+    for loop in loops:
+        centre = vertices[loop].mean(axis=0)
+        spokes = np.cross(vertices[loop] - centre, vertices[np.roll(loop, -1)] - centre)
+        added += 0.5 * float(np.linalg.norm(spokes, axis=1).sum())
+    return added / max(float(mesh.area), 1e-30)
+
+
+def check_holes(mesh: trimesh.Trimesh, watertight: bool) -> None:
+    """Refuse a mesh whose holes are too large to close (ObjectError naming ``mesh``):
+    contacts need the outward side of the surface, and with such holes the inside of the
+    object is unknown. Holes whose rims touch themselves (non-manifold edges) are left as
+    they are, open."""
+    if watertight:
+        return
+    share = hole_area_share(mesh)
+    if share is not None and share > MAX_HOLE_AREA:
+        raise ObjectError(
+            f"mesh: not closed, and its holes are too large to close (closing them would add {share:.0%} to its "
+            f"area, at most {MAX_HOLE_AREA:.0%}): which side is outside is unknown, so contact normals would be "
+            "guesses; send a closed mesh (fill the holes of the scan)")
+
+
+def close_holes(mesh: trimesh.Trimesh, max_area: float = MAX_HOLE_AREA) -> bool:
+    """Close the holes of an open mesh, in place, when they are small.
+
+    Triangular and quadrilateral holes are filled by ``trimesh.repair.fill_holes``; any
+    other hole whose rim is a simple loop gets a fan of triangles around its centroid
+    (:func:`_fan_caps`). Nothing changes unless the mesh comes out closed and the new
+    triangles add at most ``max_area`` of the mesh's area.
+
+    Returns True when the holes were closed.
+    """
+    area = float(mesh.area)
+    trial = mesh.copy()
+    trimesh.repair.fill_holes(trial)
+    if not trial.is_watertight:
+        _fan_caps(trial)
+    if not trial.is_watertight or float(trial.area) - area > max_area * area:
+        return False
+    mesh.vertices = np.asarray(trial.vertices)
+    mesh.faces = np.asarray(trial.faces)
+    return True
+
+
+def _orient_open(mesh: trimesh.Trimesh) -> None:
+    """Wind an open mesh consistently and outward, in place: outward is where the signed
+    volume of the mesh (closed by its holes' caps when they can be) comes out positive."""
+    trimesh.repair.fix_winding(mesh)
+    if not mesh.is_winding_consistent:
+        return
+    capped = mesh.copy()
+    close_holes(capped, max_area=np.inf)
+    if float(capped.volume) < 0.0:
+        mesh.invert()
 
 
 def convex_hull(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
@@ -262,7 +381,8 @@ def convex_hull(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
 
 #: A mesh that is not closed must cover at least this share of its convex hull's surface:
 #: an open surface without volume (two triangles forming a hinge cover 42 %) is not an
-#: object, an open box (83 %), a bowl-like half shell (65 %) or a scan with holes is.
+#: object, a bowl-like half shell (65 %) is (small holes, as in a scan or a box missing a
+#: face, are closed before: :func:`close_holes`).
 MIN_OPEN_COVERAGE: float = 0.5
 #: Connected parts whose bounding boxes lie farther apart than this (m) are separate
 #: bodies; a request plans one object, so such a mesh is refused. Parts that touch or

@@ -22,6 +22,14 @@ Decisions
 - Uniform density. When the mesh is a closed, consistently oriented solid
   (``watertight``), the centre of mass is the mesh's volume centroid; otherwise it is the
   centroid of the mesh's convex hull.
+- Holes (scans): a mesh that is not closed has its holes closed when the caps add at
+  most :data:`~grasp_apso.model.mesh_checks.MAX_HOLE_AREA` (45 %) of its area
+  (``trimesh.repair.fill_holes`` for triangles and quads, a fan around the rim's centroid
+  for larger simple rims), so that the signed-distance grid knows inside from outside
+  and every contact carries the outward normal; ``mesh_hash`` is that of the closed
+  mesh. A mesh with larger holes (a half shell) is refused, saying why; one whose holes'
+  rims touch themselves (non-manifold edges) stays open, wound consistently and outward
+  (the side where the mesh closed by its caps has a positive volume).
 - Winding repair of closed meshes is trimesh's (``trimesh.repair.fix_normals`` with
   ``multibody=True``, which needs networkx): each closed piece is made consistently
   wound with positive volume (nested shells, i.e. hollow solids, are not supported:
@@ -52,6 +60,7 @@ from .mesh_checks import (
     DEFAULT_MAX_TRIANGLES,
     MIN_THICKNESS,
     check_encloses_volume,
+    check_holes,
     check_limit,
     check_one_body,
     check_raw_mesh,
@@ -326,8 +335,9 @@ def from_arrays(
     Notes
     -----
     The mesh is built with ``trimesh.Trimesh(process=True)`` (duplicate vertices merged),
-    zero-area and duplicate triangles and unreferenced vertices are removed, and when
-    the mesh is closed its faces are re-wound consistently with outward normals.
+    zero-area and duplicate triangles and unreferenced vertices are removed, small holes
+    are closed, and when the mesh is closed its faces are re-wound consistently with
+    outward normals.
     """
     if not isinstance(name, str):
         raise ObjectError(f"name: expected a string, got {type(name).__name__}")
@@ -336,6 +346,7 @@ def from_arrays(
     mesh, watertight = process_mesh(verts, tris)
     hull = convex_hull(mesh)
     check_encloses_volume(mesh, hull, watertight)
+    check_holes(mesh, watertight)
     check_one_body(mesh)
     principal_extents, principal_axes = _principal_box(mesh, hull)
     if principal_extents[-1] <= MIN_THICKNESS:

@@ -17,7 +17,6 @@ stored grasps that were simulated.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 import time
 from dataclasses import dataclass
@@ -120,13 +119,12 @@ def open_database(path: str, hand: HandModel) -> Any:
                             FIELD) from None
 
 
-@functools.lru_cache(maxsize=8)
 def object_bvh(obj: Any) -> Any:
-    """The object's mesh as an ``fcl.BVHModel`` (object frame), for the approach check;
-    the last few are kept (objects hash by name and mesh hash)."""
-    from ..geometry.collision import mesh_bvh
+    """The object's mesh as an ``fcl.BVHModel`` (object frame), for the approach check
+    (built once per mesh: :func:`grasp_apso.geometry.collision.object_bvh`)."""
+    from ..geometry.collision import object_bvh as cached_bvh
 
-    return mesh_bvh(obj.mesh)
+    return cached_bvh(obj)
 
 
 def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: Any, options: Any,

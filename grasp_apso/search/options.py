@@ -52,6 +52,10 @@ class PlanOptions:
         Two candidates are distinct when their wrists differ by at least one of these.
     simulate : bool
         Check every candidate in the MuJoCo simulation (:mod:`grasp_apso.simulation`).
+    decomposition_timeout : float, s
+        Bound of one convex decomposition run of a new non-convex mesh for the simulation
+        (:mod:`grasp_apso.simulation.convex`); the plan itself waits for it only until
+        its ``should_stop`` turns true.
     """
 
     algorithm: str = default("algorithm")
@@ -75,6 +79,7 @@ class PlanOptions:
     min_orientation_gap: float = default("min_orientation_gap")
     min_position_gap: float = default("min_position_gap")
     simulate: bool = False
+    decomposition_timeout: float = default("decomposition_timeout")
 
     def __post_init__(self) -> None:
         for f in fields(self):

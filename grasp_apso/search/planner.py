@@ -10,16 +10,14 @@ collision checks of the links against the mesh and between fingers
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import OrderedDict
 from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
 from ..errors import InputError, ObjectTooLargeError, PlanningError
-from ..geometry.collision import mesh_bvh
+from ..geometry.collision import object_bvh
 from ..geometry.contact_settings import ContactSettings
 from ..geometry.decoder import (
     N_DIMS, DecodedGrasps, GraspModel, decode, make_grasp_model, warm_scene_kernels,
@@ -100,21 +98,6 @@ class GraspProblem:
         return self.generator.draw(k)
 
 
-_BVH_CACHE: "OrderedDict[str, object]" = OrderedDict()
-_BVH_LOCK = threading.Lock()
-
-
-def _cached_bvh(obj):
-    with _BVH_LOCK:
-        bvh = _BVH_CACHE.get(obj.mesh_hash)
-        if bvh is None:
-            bvh = mesh_bvh(obj.mesh)
-            _BVH_CACHE[obj.mesh_hash] = bvh
-            while len(_BVH_CACHE) > 8:
-                _BVH_CACHE.popitem(last=False)
-        return bvh
-
-
 def prepare(obj, hand: HandModel | None = None, options: PlanOptions | None = None) -> GraspModel:
     """Build (or fetch from the cache) everything fixed for planning on ``obj``."""
     hand = hand or load_hand()
@@ -161,6 +144,10 @@ def plan(
         Called once per iteration.
     should_stop : callable() -> bool, optional
         Polled before every iteration; True stops the plan (``cancelled`` in the result).
+        With ``simulate``, also polled while waiting for the convex decomposition of a new
+        mesh and before each simulated grasp: True leaves the rest unsimulated
+        (``sim_result`` -1, ``candidates_message`` says why), within about one grasp's
+        simulation (0.2 s).
     scene : Scene, optional
         Support planes and obstacles in the planning frame. No returned grasp, pre-grasp
         or approach comes within ``options.clearance`` of it (checked in the decoder and
@@ -200,7 +187,7 @@ def plan(
     adaptive = options.algorithm == "apso"
     swarm = run_swarm(problem, options.swarm_options(), rng, adaptive, progress, should_stop)
     best = swarm.best if np.isfinite(swarm.best_fitness) else np.clip(swarm.best, model.lower, model.upper)
-    verifier = Verifier(model, problem, options, pose, _cached_bvh(obj), scene_obj)
+    verifier = Verifier(model, problem, options, pose, object_bvh(obj), scene_obj)
     primary, runner_up = verifier.check_one(best), False
     if not (primary.valid and primary.force_closure):
         # The fitness rewards balance but does not guarantee force closure: prefer a
@@ -221,10 +208,12 @@ def plan(
             f"scene: no collision-free grasp: none of the {len(archive) + 1} best distinct grasps the search "
             f"found keeps the clearance ({options.clearance * 1000:.1f} mm) from the support planes and "
             "obstacles at the grasp, the pre-grasp and along the approach (python-fcl)", "scene")
-    sims = None
-    if options.simulate:  # the simulation in the final selection: held grasps first
-        checked, sims = simulate_until_held(model.hand, obj, pose, checked, scene, options.friction,
-                                            options.max_grasps, pinned_first=scene_obj is None)
+    sims, sim_note = None, ""
+    if options.simulate:  # the simulation in the final selection: held grasps first, within the time bound
+        checked, sims, sim_note = simulate_until_held(
+            model.hand, obj, pose, checked, scene, options.friction, options.max_grasps,
+            pinned_first=scene_obj is None, should_stop=should_stop,
+            decomposition_timeout=options.decomposition_timeout)
     candidates, order = to_candidates(model.hand, checked, pose, options.approach_distance,
                                       pinned_first=scene_obj is None and sims is None, sims=sims)
     top = checked[int(order[0])]
@@ -232,10 +221,12 @@ def plan(
     message = _candidates_message(len(candidates), options.max_grasps, len(archive), considered, rejected,
                                   scene_obj is not None)
     if sims is not None:
-        n_held = sum(s.held for s in sims)
+        n_held = sum(s is not None and s.held for s in sims)
         if n_held < len(candidates):
             message = (message + "; " if message else "") + (
                 f"{n_held} of {len(candidates)} held in the simulation (the dropped ones rank last)")
+    if sim_note:  # candidates not simulated (sim_result -1) or simulated on a coarser shape: why
+        message = (message + "; " if message else "") + sim_note
     return _result(top, candidates, message, runner_up, swarm, problem, options, pose, shape, preparation, t1)
 
 
@@ -402,7 +393,7 @@ class Objective:
                             iterations_run=len(history))
         options = PlanOptions(**{**self.options.__dict__, "algorithm": "apso"})
         pose = np.eye(4) if pose is None else np.asarray(pose, float)
-        verifier = Verifier(self.model, self.problem, options, pose, _cached_bvh(self.model.obj))
+        verifier = Verifier(self.model, self.problem, options, pose, object_bvh(self.model.obj))
         top = verifier.check_one(x_best)
         candidates, _ = to_candidates(self.model.hand, [top], pose, options.approach_distance, pinned_first=True)
         res = _result(top, candidates, "", False, swarm, self.problem, options, pose, self.shape,

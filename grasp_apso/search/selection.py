@@ -265,12 +265,13 @@ def to_candidates(
     ``pinned_first``: ``checked[0]`` stays first whatever its score (the free-space plan's
     best grasp, as before); the others are sorted by :func:`~.ranking.grasp_quality`.
     ``sims``: one :class:`~grasp_apso.simulation.SimResult` per entry of ``checked`` when
-    the simulation ran (held grasps then rank first, and the ``sim_*`` fields are filled).
+    the simulation ran (held grasps then rank first, and the ``sim_*`` fields are filled),
+    None for a grasp it did not reach in time (ranked as not held, ``sim_result`` -1).
     Returns the candidates and the order (indices into ``checked``).
     """
     if not checked:
         return (), np.zeros(0, dtype=int)
-    held = None if sims is None else np.array([s.held for s in sims], dtype=bool)
+    held = None if sims is None else np.array([s is not None and s.held for s in sims], dtype=bool)
     quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
                             np.array([c.force_closure for c in checked]), held,
                             robust=np.array([c.robust for c in checked]))
