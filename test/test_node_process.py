@@ -197,3 +197,64 @@ def test_a_client_that_leaves_has_its_requests_cancelled(client_context):
         _stop(dying, signal.SIGKILL)
         status = _stop(node_proc, signal.SIGINT)
     assert status == 0, node_out.text()
+
+
+def test_debug_logging_answers_every_request(client_context):
+    """With ``--log-level grasp_apso:=debug`` (issue 19: one logging call site at several
+    severities raised in rclpy and wedged the node) every request is answered: a plan, a
+    refused request, a malformed mesh, a planning error, and a plan after them."""
+    from grasp_apso.ros.conversions import arrays_to_mesh
+
+    node_proc = _start_node('--log-level', 'grasp_apso:=debug')
+    node_out = LineReader(node_proc.stdout)
+    try:
+        assert node_out.wait(lambda lines: any('ready' in l for l in lines), 120.0), node_out.text()
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        tiny = _request('')
+        tiny.mesh = arrays_to_mesh([[0, 0, 0], [4e-3, 0, 0], [0, 4e-3, 0], [0, 0, 4e-3]],
+                                   [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        nan = _request('')
+        nan.mesh = arrays_to_mesh([[0, 0, 0], [float('nan'), 0, 0], [0, 0.05, 0], [0, 0, 0.05]],
+                                  [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        cases = [(_request(particles=20, iterations=5, seed=1), True, 'grasp found'),
+                 (_request('teapot'), False, 'object_name'),
+                 (nan, False, 'mesh'),
+                 (tiny, False, 'too small'),
+                 (_request('sphere', particles=20, iterations=5, seed=2), True, 'grasp found')]
+        for req, success, words in cases:
+            res = wait_future(client.call_async(req), 60.0)
+            assert res.success is success, res.message
+            assert words in res.message, res.message
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+    text = node_out.text()
+    assert status == 0, text
+    assert 'Traceback' not in text and 'severity cannot be changed' not in text, text
+    assert '[DEBUG]' in text or 'DEBUG' in text, text
+
+
+def test_a_large_request_is_answered_within_its_time_bound(client_context):
+    """1000 particles x 10000 iterations with plan_timeout 2 s: GRG's start and the swarm
+    poll the deadline, the reply comes within 3.5 s of the request (issue 19.6)."""
+    import time
+
+    node_proc = _start_node('-p', 'plan_timeout:=2.0')
+    node_out = LineReader(node_proc.stdout)
+    try:
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        assert node_out.wait(lambda lines: any('ready' in l for l in lines), 120.0), node_out.text()
+        seconds = []
+        for name, seed in (('sphere', 3), ('fish', 4)):
+            req = _request(name, particles=1000, iterations=10000, seed=seed)
+            t0 = time.monotonic()
+            res = wait_future(client.call_async(req), 30.0)
+            seconds.append(time.monotonic() - t0)
+            print(res.message, len(res.grasps), res.iterations_run)
+            assert 'timed out after 2 s' in res.message, res.message
+            assert seconds[-1] < 3.5, (seconds, res.message)
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+    print('round trips', seconds)
+    assert status == 0, node_out.text()

@@ -185,6 +185,7 @@ class Worker:
             self._internal_error(job, "in the worker")
         finally:
             self.admission.remove(job)
+            self.log("debug", f"request {job.request_id}: finished ({job.stage.value}), its place is free")
 
     def _run_started(self, job: Job) -> None:
         deadline = Deadline(job, job.request.timeout, self._guarded(self._on_deadline),

@@ -63,13 +63,13 @@ class GraspProblem:
     """
 
     def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator,
-                 archive: LeaderArchive | None = None):
+                 archive: LeaderArchive | None = None, should_stop: Callable[[], bool] | None = None):
         self.model = model
         self.shape = shape
         self.mu = options.friction
         self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
         self.lower, self.upper = model.lower, model.upper
-        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position)
+        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position, should_stop=should_stop)
         self.archive = archive
         self._evaluations = 0
 
@@ -160,7 +160,8 @@ def plan(
     progress : callable(IterationStats), optional
         Called once per iteration.
     should_stop : callable() -> bool, optional
-        Polled before every iteration; True stops the plan (``cancelled`` in the result).
+        Polled before every iteration and between GRG's batches (the first particles of a
+        large swarm); True stops the plan (``cancelled`` in the result).
     scene : Scene, optional
         Support planes and obstacles in the planning frame. No returned grasp, pre-grasp
         or approach comes within ``options.clearance`` of it (checked in the decoder and
@@ -196,7 +197,7 @@ def plan(
     t1 = time.perf_counter()
     archive = LeaderArchive(ARCHIVE_FACTOR * options.max_grasps, options.min_orientation_gap,
                             options.min_position_gap)
-    problem = GraspProblem(model, shape, options, rng, archive)
+    problem = GraspProblem(model, shape, options, rng, archive, should_stop)
     adaptive = options.algorithm == "apso"
     swarm = run_swarm(problem, options.swarm_options(), rng, adaptive, progress, should_stop)
     best = swarm.best if np.isfinite(swarm.best_fitness) else np.clip(swarm.best, model.lower, model.upper)
