@@ -67,7 +67,7 @@ NODE_NAME = "grasp_apso"
 #: History depth of the service and action servers (requests held before they are read).
 REQUEST_HISTORY = 1000
 #: Period of the departed-client watch, s (two sightings in a row cancel: within 1 s).
-WATCH_PERIOD = 0.3
+WATCH_PERIOD = 0.2
 _REQUESTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REQUEST_HISTORY,
                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
