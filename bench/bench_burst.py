@@ -10,7 +10,10 @@ is LOST. The node's output is searched for rmw's "client will not receive respon
 rclpy's "failed to send response" (a reply dropped by the middleware) and for the
 node's own "response sent again" lines (the mitigation at work).
 
-    .venv/bin/python bench/bench_burst.py [--runs 10] [--clients 10] [--per-client 3]
+    .venv/bin/python bench/bench_burst.py [--runs 10] [--clients 10] [--per-client 3] [--in-process]
+
+``--in-process``: the clients are nodes of the bench process (one executor each), as
+test_node_process.py's burst test sends them.
 """
 
 from __future__ import annotations
@@ -69,24 +72,61 @@ rclpy.try_shutdown()
 DROPPED = ('client will not receive response', 'failed to send response')
 
 
-def one_run(clients: int, per_client: int, timeout: float, start_delay: float) -> dict:
+def _in_process_answers(clients: int, per_client: int, timeout: float) -> list[str]:
+    """The clients as the test does it: nodes of this process, each with its own executor."""
+    import rclpy
+
+    from grasp_apso_interfaces.srv import PlanGrasp
+    from node_helpers import burst_calls, identity_pose
+
+    batches = []
+    for c in range(clients):
+        batch = []
+        for r in range(per_client):
+            req = PlanGrasp.Request()
+            req.object_name = ("cube", "sphere", "barrel")[(c + r) % 3]
+            req.object_pose = identity_pose('world')
+            req.particles, req.iterations, req.seed = 30, 20, c
+            batch.append(req)
+        batches.append(batch)
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    try:
+        answers = burst_calls(context, SERVICE, batches, clients, timeout)
+    finally:
+        rclpy.shutdown(context=context)
+    return [f"LOST {i}" if res is None else
+            f"REPLY {i} 0 {'busy' if res.message.startswith('busy') else ('ok' if res.success else 'failed')} "
+            for i, (res, _) in enumerate(answers)]
+
+
+def one_run(clients: int, per_client: int, timeout: float, start_delay: float, in_process: bool = False) -> dict:
     node = subprocess.Popen([PYTHON, '-m', 'grasp_apso.ros.node'], cwd=ROOT, env=ros_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     node_out = LineReader(node.stdout)
     try:
         if not node_out.wait(lambda lines: any('ready' in l for l in lines), 120.0):
             raise RuntimeError('node not ready\n' + node_out.text())
+        if in_process:
+            outs = ['\n'.join(_in_process_answers(clients, per_client, timeout))]
+            return _summary(outs, node, node_out)
         start = time.time() + start_delay  # 0: each client sends as soon as it sees the service
         procs = [subprocess.Popen([PYTHON, '-c', CLIENT, SERVICE, str(i), str(per_client), repr(start), str(timeout)],
                                   cwd=ROOT, env=ros_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                   text=True) for i in range(clients)]
         outs = [p.communicate(timeout=timeout + 60.0)[0] for p in procs]
+        return _summary(outs, node, node_out)
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(timeout=15.0)
-        except subprocess.TimeoutExpired:
+        if node.poll() is None:
             node.kill()
+
+
+def _summary(outs: list[str], node: subprocess.Popen, node_out: LineReader) -> dict:
+    node.send_signal(signal.SIGINT)
+    try:
+        node.wait(timeout=15.0)
+    except subprocess.TimeoutExpired:
+        node.kill()
     lines = [l for out in outs for l in out.splitlines()]
     node_text = node_out.text()
     return {
@@ -110,10 +150,12 @@ def main() -> int:
     parser.add_argument('--start-delay', type=float, default=0.0,
                         help='s after the clients start when all send (0: each as soon as it sees the service, '
                              'the race where a reply can be sent before the node matched the client)')
+    parser.add_argument('--in-process', action='store_true',
+                        help='the clients are nodes of this process, one executor each (as the test sends them)')
     args = parser.parse_args()
     total_lost = 0
     for run in range(1, args.runs + 1):
-        result = one_run(args.clients, args.per_client, args.timeout, args.start_delay)
+        result = one_run(args.clients, args.per_client, args.timeout, args.start_delay, args.in_process)
         total_lost += result['lost']
         print(f'run {run}: ' + ', '.join(f'{k} {v}' for k, v in result.items()), flush=True)
     print(f'lost replies in all: {total_lost} of {args.runs * args.clients * args.per_client}')

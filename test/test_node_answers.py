@@ -102,3 +102,47 @@ def test_a_job_is_answered_when_its_run_fails_before_planning():
         assert worker.pending == 0 and job.stage is Stage.QUEUED
     finally:
         worker.stop(wait=True)
+
+
+class DroppingService:
+    """Sends like rclpy's Service does when rmw drops a response: the first ``drops``
+    sends only raise rclpy's RuntimeWarning (the client gets nothing), the next one works."""
+
+    def __init__(self, drops):
+        self.drops, self.sent, self.tries = drops, [], 0
+
+    def send_response(self, response, header):
+        import warnings
+
+        self.tries += 1
+        if self.tries <= self.drops:
+            warnings.warn('failed to send response (timeout): client will not receive response', RuntimeWarning)
+            return
+        self.sent.append((response, header))
+
+
+def test_a_response_dropped_by_the_middleware_is_sent_again():
+    import warnings
+
+    from grasp_apso.ros import responses
+    from grasp_apso_interfaces.srv import PlanGrasp
+
+    logged = []
+    service = DroppingService(drops=3)
+    responses.resend_dropped_responses(service, lambda level, text: logged.append((level, text)))
+    response = PlanGrasp.Response(request_id='abc')
+    service.send_response(response, 'header')
+    assert service.sent == [(response, 'header')] and service.tries == 4
+    assert logged and logged[0][0] == 'info' and 'after 3 dropped tries' in logged[0][1]
+    # Never sent: bounded, and said at ERROR.
+    hopeless = DroppingService(drops=10 ** 6)
+    responses.resend_dropped_responses(hopeless, lambda level, text: logged.append((level, text)))
+    hopeless.send_response(response, 'header')
+    assert hopeless.tries == responses.RETRIES + 1 and not hopeless.sent
+    assert logged[-1][0] == 'error' and 'given up' in logged[-1][1]
+    # Other warnings still reach the user.
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter('always')
+        responses.resend_dropped_responses(service, lambda level, text: None)
+        warnings.warn('something else', UserWarning)
+    assert [str(w.message) for w in seen] == ['something else']

@@ -10,18 +10,16 @@ per node tunable (:mod:`grasp_apso.ros.parameters`, ``config/grasp_apso.yaml``).
 (``grasp_source`` "database"; :mod:`.database_answers`).
 
 This module builds the node and holds its callbacks (parameters: :mod:`.parameters`,
-parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). The node
-loads the planner's compiled kernels before it logs "ready", so its first request is
-answered at once. The callbacks are coroutines in a ``ReentrantCallbackGroup``: they check
-a request, reserve a place (or answer "busy" at once), hand the job to the worker and
-``await`` its Future, so the executor keeps serving while plans run; whatever fails,
-they answer (``success: false``, "internal error", the details in the log). The service
-and the action's services keep a history of :data:`REQUEST_HISTORY` requests (reliable),
-more than the node can ever hold, so a burst is never dropped before the node has
-answered it. A busy action goal is rejected in ``goal_callback``; a cancelled queued goal
-is answered at once; when the last client of the service (or of the action) has left the
-graph, its queued and running requests are cancelled (checked every
-:data:`WATCH_PERIOD` s, confirmed once: within 1 s of the graph showing it).
+parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). It loads
+the planner's compiled kernels before it logs "ready". The callbacks are coroutines in a
+``ReentrantCallbackGroup``: they check a request, reserve a place (or answer "busy"), hand
+the job to the worker and ``await`` its Future, so the executor keeps serving while plans
+run; whatever fails, they answer (``success: false``, "internal error", details in the
+log). The servers keep a history of :data:`REQUEST_HISTORY` requests (reliable), more than
+the node can ever hold; a reply the middleware drops is sent again (:mod:`.responses`). A
+busy action goal is rejected in ``goal_callback``; a cancelled queued goal is answered at
+once; when the last client of the service (or of the action) has left the graph, its
+requests are cancelled (checked every :data:`WATCH_PERIOD` s, on the second sighting).
 """
 
 from __future__ import annotations
@@ -58,6 +56,7 @@ from .job import Job
 from .plan_request import RequestKind
 from .replies import Outcome, internal_error_message
 from .requests import parse_request
+from .responses import resend_dropped_responses
 from .usage import usage_text, wants_help
 from .worker import Worker
 
@@ -94,6 +93,7 @@ class GraspPlannerNode(Node):
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._service = self.create_service(PlanGrasp, "~/plan_grasp", self._on_plan_service,
                                             qos_profile=_REQUESTS_QOS, callback_group=group)
+        resend_dropped_responses(self._service, self.log)  # see .responses: rmw can drop a reply
         self._action_server = ActionServer(
             self, PlanGraspAction, "~/plan_grasp", execute_callback=self._on_plan_goal,
             goal_callback=self._on_goal_request, cancel_callback=self._on_cancel, callback_group=group,
@@ -147,9 +147,9 @@ class GraspPlannerNode(Node):
         goal's place was reserved in :meth:`_on_goal_request`."""
         request_id = str(uuid.uuid4())
         header = Header(stamp=req.object_pose.header.stamp, frame_id=req.object_pose.header.frame_id)
-        kind = RequestKind.SERVICE if goal_handle is None else RequestKind.ACTION
         try:
-            plan_request = parse_request(req, self.parameters.settings, request_id, kind)
+            plan_request = parse_request(req, self.parameters.settings, request_id,
+                                         RequestKind.SERVICE if goal_handle is None else RequestKind.ACTION)
         except GraspApsoError as exc:
             if goal_handle is not None:
                 self.worker.release()
