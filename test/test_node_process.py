@@ -279,3 +279,37 @@ def test_a_large_request_is_answered_within_its_time_bound(client_context):
         status = _stop(node_proc, signal.SIGINT)
     print('round trips', seconds)
     assert status == 0, node_out.text()
+
+
+def test_help_prints_the_usage_and_exits_without_starting_ros():
+    """``planner_node --help``: usage and every parameter (from tunables), status 0, no node."""
+    proc = subprocess.run([PYTHON, '-m', 'grasp_apso.ros.node', '--help'], cwd=REPO_ROOT, env=ros_env(),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.startswith('usage: planner_node')
+    for name in PARAMETER_NAMES:
+        assert f'\n  {name} (' in proc.stdout, name
+    assert '[INFO]' not in proc.stdout + proc.stderr  # no node was built
+
+
+def test_the_first_request_after_ready_is_answered_at_once(client_context):
+    """The node says "ready" after loading its kernels (issue 19.3): the first request's
+    round trip is within 2 s of its planning time."""
+    import time
+
+    node_proc = _start_node()
+    node_out = LineReader(node_proc.stdout)
+    try:
+        assert node_out.wait(lambda lines: any(': ready:' in l for l in lines), 180.0), node_out.text()
+        lines = node_out.text().splitlines()
+        assert any('planner kernels loaded in' in l for l in lines), node_out.text()
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        t0 = time.monotonic()
+        res = wait_future(client.call_async(_request('fish', seed=5)), 60.0)
+        round_trip = time.monotonic() - t0
+        assert res.success, res.message
+        assert round_trip - res.planning_time < 2.0, (round_trip, res.planning_time)
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+    assert status == 0, node_out.text()
