@@ -2,7 +2,7 @@
 
 A task carries the mesh file's bytes (read by the driver), so a worker needs no shared
 file system, only an installed grasp_apso. The worker parses and validates the mesh
-(:func:`grasp_apso.model.mesh_files.from_file` on a private temporary copy), scales it,
+(:func:`grasp_apso.model.object_source.resolve_object` of a private temporary copy, scaled),
 builds the optional table, plans with :func:`grasp_apso.search.planner.plan` and returns
 plain Python rows (:func:`grasp_apso.database.schema.candidate_rows`). It never raises for
 a bad object: every error comes back as an :class:`Outcome` with ``ok = False``.
