@@ -98,8 +98,8 @@ def test_a_job_is_answered_when_its_run_fails_before_planning():
         future.add_done_callback(lambda _f: done.set())
         assert done.wait(30.0)
         assert not future.result().success
-        assert future.result().message.startswith('internal error during queued'), future.result().message
-        assert worker.pending == 0 and job.stage is Stage.QUEUED
+        assert future.result().message.startswith('internal error during validation'), future.result().message
+        assert worker.pending == 0 and job.stage is Stage.VALIDATION
     finally:
         worker.stop(wait=True)
 

@@ -180,6 +180,7 @@ class Worker:
                 if job.answered or job.cancelled:
                     return  # cancelled while queued: already answered
                 job.started = True
+                job.stage = Stage.VALIDATION  # the object source is checked first
             self._run_started(job)
         except BaseException:  # noqa: BLE001 -- the last line of defence: a reply, always
             self._internal_error(job, "in the worker")
@@ -200,6 +201,8 @@ class Worker:
             self.log("info", f"request {job.request_id}: {exc}{f' ({detail})' if detail else ''}")
             note = job.database_note
             outcome = Outcome(False, f"{exc} ({note})" if note else str(exc))
+            if job.cancel_requested():  # stopped before any grasp was found (GRG's start)
+                outcome = Outcome(False, f"cancelled during {job.stage.value}", cancelled=True)
         except Exception:  # noqa: BLE001 -- request boundary: a worker thread never dies
             self.log("error", f"request {job.request_id}: internal error\n{traceback.format_exc()}")
             outcome = Outcome(False, internal_error_message(job.stage.value, job.request_id))
