@@ -138,6 +138,7 @@ def _summary(outs: list[str], node: subprocess.Popen, node_out: LineReader) -> d
         'dropped_by_rmw': sum(any(d in l for d in DROPPED) for l in node_text.splitlines()),
         'resent': sum('response sent again' in l for l in node_text.splitlines()),
         'requests_logged': sum(' particles x ' in l or ': busy' in l for l in node_text.splitlines()),
+        'notes': [l for l in node_text.splitlines() if 'sent again' in l or any(d in l for d in DROPPED)],
     }
 
 
@@ -157,7 +158,10 @@ def main() -> int:
     for run in range(1, args.runs + 1):
         result = one_run(args.clients, args.per_client, args.timeout, args.start_delay, args.in_process)
         total_lost += result['lost']
+        notes = result.pop('notes')
         print(f'run {run}: ' + ', '.join(f'{k} {v}' for k, v in result.items()), flush=True)
+        for line in notes:
+            print('   node:', line, flush=True)
     print(f'lost replies in all: {total_lost} of {args.runs * args.clients * args.per_client}')
     return 1 if total_lost else 0
 
