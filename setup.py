@@ -26,7 +26,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + package_name + '/config', sorted(glob('config/*.yaml') + glob('config/*.xml'))),
         ('share/' + package_name + '/urdf', sorted(glob('urdf/*.urdf'))),
     ],
     # Dependencies are declared in package.xml (rosdep) and pinned in requirements.txt

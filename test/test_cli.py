@@ -290,8 +290,9 @@ from grasp_apso.errors import SceneError, UsageError  # noqa: E402
 from grasp_apso.model.builtin import builtin  # noqa: E402
 from grasp_apso.model.scene import BOX, CYLINDER, SPHERE  # noqa: E402
 from grasp_apso.search.planner import PlanOptions, plan  # noqa: E402
-from grasp_apso.tools import cli_inputs, summary  # noqa: E402
-from grasp_apso.tools.palette import APPROACH_COLOR, SCENE_COLOR, rgb  # noqa: E402
+from grasp_apso.tools import cli_inputs  # noqa: E402
+from grasp_apso.presentation import summary  # noqa: E402
+from grasp_apso.presentation.palette import APPROACH_COLOR, SCENE_COLOR, rgb  # noqa: E402
 
 
 def test_obstacles_and_table_are_parsed_in_the_planning_frame():

@@ -200,7 +200,8 @@ def test_markers_show_scene_approach_and_pre_grasp(planned):
     assert {'grasp_apso/pre_grasp_palm', 'grasp_apso/pre_grasp_links'} <= set(by_ns)
     assert all(m.color.a < 0.5 for m in by_ns['grasp_apso/pre_grasp_links'])
     # One palette with the pictures.
-    from grasp_apso.tools import palette, plotting
+    from grasp_apso.presentation import palette
+    from grasp_apso.tools import plotting
     assert plotting.FINGER_COLORS is palette.FINGER_COLORS
     thumb = by_ns['grasp_apso/links'][4].color
     assert np.allclose([thumb.r, thumb.g, thumb.b], palette.rgb(palette.FINGER_COLORS['thumb']))

@@ -93,3 +93,35 @@ def test_generation_is_bounded_when_no_grasp_exists():
     assert x.shape == (60, 19)
     assert gen.evaluations <= 3 * 120 * (gen.verification_rounds + 1)
     assert n_valid <= 60
+
+
+def test_generation_stops_between_batches_when_asked():
+    """A plan's deadline reaches GRG's start (issue 19.6): with ``should_stop`` true,
+    generation ends after its first batch and returns what it has, without raising,
+    even for an object where no grasp exists."""
+    slab = trimesh.creation.box(extents=[0.15, 0.15, 0.15])
+    obj = from_arrays(slab.vertices, slab.faces, name="big box")
+    model = prepare(obj, load_hand())
+    free = GuidedGenerator(model, classify_shape(obj), np.random.default_rng(0), max_batches=3)
+    free.generate(60)
+    polls = []
+    stopped = GuidedGenerator(model, classify_shape(obj), np.random.default_rng(0), max_batches=3,
+                              should_stop=lambda: polls.append(1) or True)
+    x = stopped.draw(60)  # no valid particle: would raise PlanningError if not stopped
+    assert x.shape == (60, 19) and np.all(np.isfinite(x))
+    assert polls, "the stop predicate was never polled"
+    one_batch = 2 * max(2 * 60, stopped.refill) * (stopped.verification_rounds + 1)
+    assert stopped.evaluations <= one_batch < free.evaluations
+
+
+def test_a_plan_stopped_at_once_spends_about_one_grg_batch():
+    """plan() hands its stop predicate to GRG: a 1000-particle plan stopped from the first
+    poll decodes at most GRG's first batch (2000 particles and their verification rounds)
+    and no iteration."""
+    from grasp_apso.search.planner import PlanOptions, plan
+
+    result = plan(builtin("sphere"), options=PlanOptions(particles=1000, iterations=10000),
+                  rng=np.random.default_rng(1), should_stop=lambda: True)
+    assert result.cancelled
+    assert result.iterations_run == 0
+    assert result.evaluations <= 2 * 1000 * 4 + 5000  # one batch + the final verification's decodes

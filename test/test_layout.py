@@ -99,6 +99,15 @@ def test_every_module_outside_ros_imports_without_rclpy(tmp_path):
     assert len(names) > 30
 
 
+def test_ros_does_not_import_tools():
+    """The node's wording and colours come from ``presentation/``, shared with ``tools/``:
+    ``ros/`` never imports the command-line package (nor ``presentation/`` anything of it)."""
+    offenders = sorted(
+        f"{p.relative_to(ROOT)} -> {m}" for p in MODULES if p.relative_to(PKG).parts[0] in ("ros", "presentation")
+        for m in _imports(p) if m == "grasp_apso.tools" or m.startswith("grasp_apso.tools."))
+    assert offenders == []
+
+
 def test_no_import_cycle_between_modules():
     graph = {_module_name(p): {m for m in _imports(p) if m != _module_name(p)} for p in MODULES}
     # A package's __init__ importing nothing is the norm here; edges to packages count too.

@@ -2,7 +2,7 @@
 
 A task carries the mesh file's bytes (read by the driver), so a worker needs no shared
 file system, only an installed grasp_apso. The worker parses and validates the mesh
-(:func:`grasp_apso.model.mesh_files.from_file` on a private temporary copy), scales it,
+(:func:`grasp_apso.model.object_source.resolve_object` of a private temporary copy, scaled),
 builds the optional table, plans with :func:`grasp_apso.search.planner.plan` and returns
 plain Python rows (:func:`grasp_apso.database.schema.candidate_rows`). It never raises for
 a bad object: every error comes back as an :class:`Outcome` with ``ok = False``.
@@ -26,8 +26,7 @@ from .. import __version__
 from ..errors import GraspApsoError, PlanningError
 from ..model.hand import load_hand
 from ..model.mesh_checks import DEFAULT_MAX_TRIANGLES
-from ..model.mesh_files import from_file
-from ..model.objects import from_arrays
+from ..model.object_source import MeshFile, resolve_object
 from ..model.poses import pose_to_matrix
 from ..search.options import PlanOptions
 from .schema import candidate_rows
@@ -191,15 +190,11 @@ def _load_object(task: ObjectTask):
         with open(local, "wb") as handle:
             handle.write(task.data)
         try:
-            obj = from_file(local, max_triangles=task.max_triangles, max_bytes=max(1, len(task.data)),
-                            name=task.object_id)
+            return resolve_object(MeshFile(local, max_bytes=max(1, len(task.data)), max_triangles=task.max_triangles,
+                                           scale=task.scale, name=task.object_id))
         except GraspApsoError as exc:
             exc.args = (str(exc).replace(local, task.source_path),)
             raise
-    if task.scale != 1.0:
-        obj = from_arrays(np.asarray(obj.mesh.vertices) * task.scale, obj.mesh.faces, name=task.object_id,
-                          max_triangles=task.max_triangles)
-    return obj
 
 
 def _plan(task: ObjectTask, obj):

@@ -17,6 +17,7 @@ Functions
   response or action result (they have the same fields): ``grasps`` and the top-level
   fields (= ``grasps[0]``)
 - :func:`progress_msg` -- :class:`~grasp_apso.search.swarm.IterationStats` -> ``GraspProgress``
+- :func:`reply_header` -- a request's frame and stamp -> ``std_msgs/Header``
 
 RViz markers are in :mod:`grasp_apso.ros.markers`.
 """
@@ -39,6 +40,7 @@ from ..model.hand import JOINT_NAMES
 from ..model.poses import matrix_to_pose, pose_to_matrix
 
 __all__ = [
+    "reply_header",
     "arrays_to_mesh",
     "arrays_to_packed",
     "fill_result",
@@ -335,3 +337,11 @@ def progress_msg(stats: Any, request_id: str, algorithm: str, header: Header) ->
     msg.elapsed = float(stats.elapsed)
     msg.distinct_candidates = int(stats.distinct_candidates)
     return msg
+
+
+def reply_header(request: Any) -> Header:
+    """The header of a reply: the :class:`~grasp_apso.ros.plan_request.PlanRequest`'s
+    ``frame_id`` and ``stamp`` (sec, nanosec)."""
+    header = Header(frame_id=request.frame_id)
+    header.stamp.sec, header.stamp.nanosec = (int(v) for v in request.stamp)
+    return header

@@ -1,6 +1,6 @@
 """RViz markers of a planned grasp and its scene (``visualization_msgs/MarkerArray``).
 
-Colours come from :mod:`grasp_apso.tools.palette`, the palette of the PNG pictures too.
+Colours come from :mod:`grasp_apso.presentation.palette`, the palette of the PNG pictures too.
 Everything is in the request's planning frame (``object_pose.header.frame_id``).
 """
 
@@ -16,7 +16,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ..model.hand import FINGER_NAMES, HandModel
 from ..model.scene import BOX, CYLINDER, SPHERE, Scene
-from ..tools import palette
+from ..presentation import palette
 from .conversions import matrix_to_pose_msg
 
 __all__ = ["MARKER_NAMESPACE", "delete_all_markers", "grasp_markers", "scene_markers"]

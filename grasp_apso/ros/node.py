@@ -10,14 +10,16 @@ per node tunable (:mod:`grasp_apso.ros.parameters`, ``config/grasp_apso.yaml``).
 (``grasp_source`` "database"; :mod:`.database_answers`).
 
 This module builds the node and holds its callbacks (parameters: :mod:`.parameters`,
-parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). The callbacks are coroutines in a ``ReentrantCallbackGroup``: they check
-a request, reserve a place (or answer "busy" at once), hand the job to the worker and
-``await`` its Future, so the executor keeps serving while plans run. The service and the
-action's services keep a history of :data:`REQUEST_HISTORY` requests (reliable), more
-than the node can ever hold, so a burst is never dropped before the node has answered
-it. A busy action goal is rejected in ``goal_callback``; a cancelled queued goal is
-answered at once; when the last client of the service (or of the action) has left the
-graph, its queued and running requests are cancelled (checked every second).
+parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). It loads
+the planner's compiled kernels before it logs "ready". The callbacks are coroutines in a
+``ReentrantCallbackGroup``: they check a request, reserve a place (or answer "busy"), hand
+the job to the worker and ``await`` its Future, so the executor keeps serving while plans
+run; whatever fails, they answer (``success: false``, "internal error", details in the
+log). The servers keep a history of :data:`REQUEST_HISTORY` requests (reliable), more than
+the node can ever hold; a reply the middleware drops is sent again (:mod:`.responses`). A
+busy action goal is rejected in ``goal_callback``; a cancelled queued goal is answered at
+once; when the last client of the service (or of the action) has left the graph, its
+requests are cancelled (checked every :data:`WATCH_PERIOD` s, on the second sighting).
 """
 
 from __future__ import annotations
@@ -47,17 +49,24 @@ from grasp_apso_interfaces.msg import GraspProgress
 from grasp_apso_interfaces.srv import PlanGrasp
 
 from ..errors import GraspApsoError
-from .conversions import fill_result, progress_msg
+from .conversions import fill_result, progress_msg, reply_header
 from .markers import grasp_markers
 from .parameters import PARAMETER_NAMES, PARAMETERS, NodeParameters
-from .requests import Job, parse_request
-from .worker import Outcome, Worker
+from .job import Job
+from .plan_request import RequestKind
+from .replies import Outcome, internal_error_message
+from .requests import parse_request
+from .responses import resend_dropped_responses
+from .usage import usage_text, wants_help
+from .worker import Worker
 
 __all__ = ["GraspPlannerNode", "PARAMETERS", "PARAMETER_NAMES", "REQUEST_HISTORY", "main"]
 
 NODE_NAME = "grasp_apso"
 #: History depth of the service and action servers (requests held before they are read).
 REQUEST_HISTORY = 1000
+#: Period of the departed-client watch, s (two sightings in a row cancel: within 1 s).
+WATCH_PERIOD = 0.2
 _REQUESTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REQUEST_HISTORY,
                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
@@ -72,7 +81,11 @@ class GraspPlannerNode(Node):
         self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
                              database=self.parameters.database)
         self._goals: dict[bytes, Job] = {}
-        self._absent: dict[str, int] = {"service": 0, "action": 0}
+        self._absent: dict[RequestKind, int] = {kind: 0 for kind in RequestKind}
+        self.get_logger().info("loading the planner's compiled kernels ...")
+        seconds = self.worker.warm_up()
+        if seconds is not None:
+            self.get_logger().info(f"planner kernels loaded in {seconds:.2f} s")
         group = ReentrantCallbackGroup()
         self._progress_pub = self.create_publisher(GraspProgress, "~/progress", QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
@@ -80,14 +93,15 @@ class GraspPlannerNode(Node):
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._service = self.create_service(PlanGrasp, "~/plan_grasp", self._on_plan_service,
                                             qos_profile=_REQUESTS_QOS, callback_group=group)
+        resend_dropped_responses(self._service, self.log)  # see .responses: rmw can drop a reply
         self._action_server = ActionServer(
             self, PlanGraspAction, "~/plan_grasp", execute_callback=self._on_plan_goal,
             goal_callback=self._on_goal_request, cancel_callback=self._on_cancel, callback_group=group,
             goal_service_qos_profile=_REQUESTS_QOS, result_service_qos_profile=_REQUESTS_QOS,
             cancel_service_qos_profile=_REQUESTS_QOS)
         name = self.resolve_service_name("~/plan_grasp")
-        self._client_endpoints = {"service": name, "action": f"{name}/_action/send_goal"}
-        self._watch = self.create_timer(1.0, self._watch_clients, callback_group=MutuallyExclusiveCallbackGroup())
+        self._client_endpoints = {RequestKind.SERVICE: name, RequestKind.ACTION: f"{name}/_action/send_goal"}
+        self._watch = self.create_timer(WATCH_PERIOD, self._watch_clients, callback_group=MutuallyExclusiveCallbackGroup())
         db = self.parameters.database
         stored = (f", grasp database {db.path} ({len(db)} objects, {db.rows} grasps, read in "
                   f"{db.load_seconds:.2f} s)" if db is not None else "")
@@ -96,13 +110,22 @@ class GraspPlannerNode(Node):
 
     # ------------------------------------------------------------------ worker hooks
     def log(self, level: str, text: str) -> None:
-        """Log from any thread (the worker's hook)."""
-        getattr(self.get_logger(), level)(text)
+        """Log from any thread (the worker's hook); one line per severity (rclpy raises
+        ValueError when one call site logs at two severities)."""
+        logger = self.get_logger()
+        if level == "debug":
+            logger.debug(text)
+        elif level == "info":
+            logger.info(text)
+        elif level == "warning":
+            logger.warning(text)
+        else:
+            logger.error(text)
 
     def on_progress(self, job: Job, stats: Any) -> None:
         """Worker hook: publish one iteration's progress (and the action feedback)."""
-        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=job.header.frame_id)
-        msg = progress_msg(stats, job.request_id, job.options.algorithm, header)
+        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=job.request.frame_id)
+        msg = progress_msg(stats, job.request_id, job.request.options.algorithm, header)
         try:
             self._progress_pub.publish(msg)
             if job.goal_handle is not None:
@@ -113,7 +136,8 @@ class GraspPlannerNode(Node):
     def on_result(self, job: Job, result: Any) -> None:
         """Worker hook: publish the grasp, its candidates and the scene for RViz."""
         try:
-            self._marker_pub.publish(grasp_markers(result, job.header, job.hand, job.scene))
+            req = job.request
+            self._marker_pub.publish(grasp_markers(result, reply_header(req), req.hand, req.scene))
         except Exception:  # noqa: BLE001 -- markers are best effort
             self.get_logger().warning(f"request {job.request_id}: markers not published\n{traceback.format_exc()}")
 
@@ -124,7 +148,8 @@ class GraspPlannerNode(Node):
         request_id = str(uuid.uuid4())
         header = Header(stamp=req.object_pose.header.stamp, frame_id=req.object_pose.header.frame_id)
         try:
-            job = parse_request(req, self.parameters.settings, request_id, goal_handle)
+            plan_request = parse_request(req, self.parameters.settings, request_id,
+                                         RequestKind.SERVICE if goal_handle is None else RequestKind.ACTION)
         except GraspApsoError as exc:
             if goal_handle is not None:
                 self.worker.release()
@@ -134,13 +159,14 @@ class GraspPlannerNode(Node):
             if goal_handle is not None:
                 self.worker.release()
             self.get_logger().error(f"request {request_id}: internal error\n{traceback.format_exc()}")
-            return request_id, Outcome(False, f"internal error while checking the request (request "
-                                              f"{request_id}; the details are in the node's log)"), header
+            return request_id, Outcome(False, internal_error_message("the request's check", request_id)), header
+        header = reply_header(plan_request)
+        job = Job(plan_request, goal_handle=goal_handle)
         if goal_handle is None:
             busy = self.worker.reserve()
             if busy:
                 self.get_logger().info(f"request {request_id}: {busy}")
-                return request_id, Outcome(False, busy), job.header
+                return request_id, Outcome(False, busy), header
         else:
             self._goals[bytes(goal_handle.goal_id.uuid)] = job
         try:
@@ -148,11 +174,20 @@ class GraspPlannerNode(Node):
         finally:
             if goal_handle is not None:
                 self._goals.pop(bytes(goal_handle.goal_id.uuid), None)
-        return request_id, outcome, job.header
+        return request_id, outcome, header
+
+    async def _answered(self, req: Any, msg: Any, goal_handle: Any = None) -> tuple[Any, Outcome]:
+        """``msg`` filled with the answer to ``req``; an internal error is an answer too."""
+        try:
+            request_id, outcome, header = await self._run(req, goal_handle)
+        except Exception:  # noqa: BLE001 -- request boundary: every request is answered
+            self.get_logger().error(f"request: internal error in the node\n{traceback.format_exc()}")
+            request_id, header = "", Header(frame_id=req.object_pose.header.frame_id)
+            outcome = Outcome(False, internal_error_message("the node's callback", "unknown"))
+        return self._fill(msg, request_id, outcome, header), outcome
 
     async def _on_plan_service(self, request: PlanGrasp.Request, response: PlanGrasp.Response):
-        request_id, outcome, header = await self._run(request)
-        return self._fill(response, request_id, outcome, header)
+        return (await self._answered(request, response))[0]
 
     def _on_goal_request(self, _goal: Any) -> GoalResponse:
         """Accept a goal only when a place is free (busy goals are rejected, not aborted)."""
@@ -170,8 +205,8 @@ class GraspPlannerNode(Node):
         return CancelResponse.ACCEPT
 
     async def _on_plan_goal(self, goal_handle: Any) -> PlanGraspAction.Result:
-        request_id, outcome, header = await self._run(goal_handle.request, goal_handle)
-        result = self._fill(PlanGraspAction.Result(), request_id, outcome, header)
+        result, outcome = await self._answered(goal_handle.request, PlanGraspAction.Result(), goal_handle)
+        request_id = result.request_id
         if outcome.cancelled:
             # A queued goal is answered from the cancel callback, before rclpy marks the
             # goal as cancelling: let the executor finish that first (bounded).
@@ -214,7 +249,8 @@ class GraspPlannerNode(Node):
 
     def _watch_clients(self) -> None:
         """Timer: cancel the requests of a kind whose last client left the graph (seen
-        twice in a row, a second apart). rclpy tells when no client is left, not which one
+        twice in a row, :data:`WATCH_PERIOD` apart: a client's request writer is briefly
+        absent while it reconnects). rclpy tells when no client is left, not which one
         left: with other clients of the same kind present, nothing is cancelled."""
         kinds = self.worker.active_kinds()
         for kind, endpoint in self._client_endpoints.items():
@@ -223,7 +259,7 @@ class GraspPlannerNode(Node):
             if self._absent[kind] >= 2:
                 n = self.worker.cancel_where(lambda j, k=kind: j.kind == k, "cancelled: the client left")
                 if n:
-                    self.get_logger().warning(f"no {kind} client left: cancelled {n} of its requests")
+                    self.get_logger().warning(f"no {kind.value} client left: cancelled {n} of its requests")
 
     # ------------------------------------------------------------------ shutdown
     def stop_worker(self, wait: bool = True) -> None:
@@ -246,6 +282,9 @@ def main(args: list[str] | None = None) -> int:
     rclpy shut down: exit status 0. A second signal exits at once (130). Status 1 when the
     node cannot start (an invalid parameter; the message names it).
     """
+    if wants_help(sys.argv[1:] if args is None else list(args)):
+        sys.stdout.write(usage_text())
+        return 0
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     signals: list[int] = []

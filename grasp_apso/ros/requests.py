@@ -1,4 +1,6 @@
-"""Request parsing: a ``PlanGrasp`` request or action goal -> a :class:`Job` for the worker.
+"""Request parsing: a ``PlanGrasp`` request or action goal -> an immutable
+:class:`~.plan_request.PlanRequest` (its object source a typed
+:mod:`~grasp_apso.model.object_source` union) for the worker.
 
 Only cheap checks run here, on the executor's thread: exactly one object source, sizes
 counted before any array is built (triangles AND vertices against
@@ -14,84 +16,23 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import re
-import threading
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from std_msgs.msg import Header
 
 from ..errors import ObjectError, RequestError, SceneError
 from ..model import builtin as builtin_objects
-from ..model.hand import HandModel
+from ..model.object_source import PACKED, BuiltinObject, InlineMesh, MeshFile, ObjectSource
 from ..model.poses import pose_to_matrix
 from ..model.scene import Scene
 from ..search.options import ALGORITHMS, PlanOptions
 from .conversions import mesh_to_arrays, packed_mesh_to_arrays, pose_stamped_to_matrix
 from .parameters import Settings
+from .plan_request import PlanRequest, RequestKind
 
-__all__ = ["Job", "PACKED", "parse_request", "parse_scene", "packed_message"]
+__all__ = ["parse_request", "parse_scene"]
 
-#: The packed mesh source, as it is named in messages.
-PACKED = "mesh_vertices/mesh_triangles"
 _SOURCES = f"mesh, {PACKED}, mesh_uri, object_name"
-
-
-@dataclass
-class Job:
-    """A checked request, ready for the worker, and its progress through it.
-
-    ``stage`` is where the worker is (``queued``, ``reading``, ``validation``,
-    ``preparation``, ``planning``); a timeout names it. ``answered`` is set by whichever
-    of the worker, the timeout or a cancel answers first (the others then do nothing).
-    """
-
-    request_id: str
-    header: Header
-    pose: np.ndarray
-    source: str                      # "mesh" | PACKED | "mesh_uri" | "object_name"
-    describe: str                    # for log lines
-    options: PlanOptions
-    seed: int | None
-    hand: HandModel
-    timeout: float
-    scene: Scene | None = None
-    vertices: np.ndarray | None = None
-    triangles: np.ndarray | None = None
-    mesh_uri: str = ""
-    allowed_dir: str = ""
-    object_name: str = ""
-    max_triangles: int = 200_000
-    max_bytes: int = 50_000_000
-    shown_uri: str = ""              # mesh_uri as the caller wrote it (for messages)
-    goal_handle: Any = None
-    kind: str = "service"            # "service" | "action"
-    future: Any = None               # the rclpy Future the callback awaits
-    executor: Any = None             # the executor that completes it
-    stage: str = "queued"
-    started: bool = False
-    cancelled: bool = False
-    timed_out: bool = False
-    answered: bool = False
-    database_note: str = ""          # why the grasp database did not answer (for the message)
-    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
-
-
-def packed_message(text: str) -> str:
-    """A validation message of the mesh checks (which say ``mesh: ...``) re-addressed to the
-    packed fields the client filled: vertex problems name ``mesh_vertices``, index problems
-    ``mesh_triangles``, problems of the whole mesh both."""
-    if not text.startswith("mesh: "):
-        return text
-    rest = text[len("mesh: "):]
-    if re.match(r"(vertex \d|vertices |\d+ vertices )", rest):
-        name = "mesh_vertices"
-    elif re.match(r"(triangle \d|triangles |\d+ triangles )", rest):
-        name = "mesh_triangles"
-    else:
-        name = PACKED
-    return f"{name} (packed mesh): {rest}"
 
 
 def _finite_or_default(value: float, name: str, default: float) -> float:
@@ -184,8 +125,8 @@ def _options(req: Any, settings: Settings, pose: np.ndarray) -> tuple[PlanOption
     return options, (None if seed < 0 else seed)
 
 
-def parse_request(req: Any, settings: Settings, request_id: str, goal_handle: Any = None) -> Job:
-    """Check a request (cheap checks only) and build the worker's :class:`Job`.
+def parse_request(req: Any, settings: Settings, request_id: str, kind: RequestKind = RequestKind.SERVICE) -> PlanRequest:
+    """Check a request (cheap checks only) and build the worker's :class:`PlanRequest`.
 
     Raises
     ------
@@ -194,15 +135,19 @@ def parse_request(req: Any, settings: Settings, request_id: str, goal_handle: An
     """
     source, has_mesh, has_packed, uri, name = _object_source(req)
     frame, pose = pose_stamped_to_matrix(req.object_pose, "object_pose")
-    header = Header(stamp=req.object_pose.header.stamp, frame_id=frame)
     options, seed = _options(req, settings, pose)
     scene = parse_scene(req)
+    stamp = req.object_pose.header.stamp
+    return PlanRequest(
+        request_id=request_id, frame_id=frame, stamp=(int(stamp.sec), int(stamp.nanosec)), pose=pose,
+        source=_checked_source(req, settings, has_mesh, has_packed, uri, name), options=options, seed=seed,
+        hand=settings.hand, timeout=float(settings["plan_timeout"]), scene=scene, kind=kind)
+
+
+def _checked_source(req: Any, settings: Settings, has_mesh: bool, has_packed: bool, uri: str,
+                    name: str) -> ObjectSource:
+    """The request's object source, its sizes counted before any array is built."""
     max_triangles = int(settings["max_mesh_triangles"])
-    job = Job(
-        request_id=request_id, header=header, pose=pose, source=source, describe="",
-        options=options, seed=seed, hand=settings.hand, timeout=float(settings["plan_timeout"]),
-        scene=scene, max_triangles=max_triangles, max_bytes=int(settings["max_mesh_bytes"]),
-        goal_handle=goal_handle, kind="service" if goal_handle is None else "action")
     limit = f"(parameter max_mesh_triangles; at most 3 vertices per triangle, {3 * max_triangles} vertices)"
     if has_packed:
         if not len(req.mesh_vertices) or not len(req.mesh_triangles):
@@ -216,30 +161,27 @@ def parse_request(req: Any, settings: Settings, request_id: str, goal_handle: An
         if n_vert > 3 * max_triangles:
             raise ObjectError(f"mesh_vertices: {n_vert} vertices exceeds the limit of {3 * max_triangles} {limit}")
         try:
-            job.vertices, job.triangles = packed_mesh_to_arrays(req.mesh_vertices, req.mesh_triangles)
+            vertices, triangles = packed_mesh_to_arrays(req.mesh_vertices, req.mesh_triangles)
         except ValueError as exc:
             raise ObjectError(str(exc)) from None
-        job.describe = f"packed mesh ({len(job.vertices)} vertices, {len(job.triangles)} triangles)"
-    elif has_mesh:
+        return InlineMesh(vertices, triangles, packed=True, max_triangles=max_triangles)
+    if has_mesh:
         n_tri, n_vert = len(req.mesh.triangles), len(req.mesh.vertices)
         if n_tri > max_triangles:
             raise ObjectError(f"mesh: {n_tri} triangles exceeds the limit of {max_triangles} {limit}")
         if n_vert > 3 * max_triangles:
             raise ObjectError(f"mesh: {n_vert} vertices exceeds the limit of {3 * max_triangles} {limit}")
-        job.vertices, job.triangles = mesh_to_arrays(req.mesh)
-        job.describe = f"mesh ({n_vert} vertices, {n_tri} triangles)"
-    elif uri:
+        vertices, triangles = mesh_to_arrays(req.mesh)
+        return InlineMesh(vertices, triangles, packed=False, max_triangles=max_triangles)
+    if uri:
         allowed = str(settings["allowed_mesh_dir"])
         if not allowed:
             raise ObjectError("mesh_uri: mesh files are disabled on this node (parameter allowed_mesh_dir "
                               "is empty); send the mesh inline")
         if "://" not in uri and not os.path.isabs(uri):
             uri = os.path.join(allowed, uri)
-        job.mesh_uri, job.allowed_dir, job.shown_uri = uri, allowed, req.mesh_uri.strip()
-        job.describe = f"mesh_uri {req.mesh_uri}"
-    else:
-        if name not in builtin_objects.BUILTIN_OBJECTS:
-            builtin_objects.builtin(name)  # raises ObjectError "object_name: unknown ..."
-        job.object_name = name
-        job.describe = f"object {name}"
-    return job
+        return MeshFile(uri, allowed_dir=allowed, max_bytes=int(settings["max_mesh_bytes"]),
+                        shown=req.mesh_uri.strip(), max_triangles=max_triangles)
+    if name not in builtin_objects.BUILTIN_OBJECTS:
+        builtin_objects.builtin(name)  # raises ObjectError "object_name: unknown ..."
+    return BuiltinObject(name)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -358,6 +359,12 @@ class GuidedGenerator:
     evaluations: int = 0
     #: Decodes the scene check rejected (a scene only).
     scene_rejections: int = 0
+    #: Polled between batches: True stops generating (the plan's deadline or a cancel);
+    #: what is missing is then filled with unverified particles, and nothing is raised.
+    should_stop: Callable[[], bool] | None = None
+
+    def stopped(self) -> bool:
+        return self.should_stop is not None and bool(self.should_stop())
 
     def __post_init__(self) -> None:
         self._pool = np.empty((0, N_DIMS))
@@ -440,7 +447,9 @@ class GuidedGenerator:
         found: list[np.ndarray] = []
         spare = np.empty((0, N_DIMS))
         count = 0
-        for _ in range(self.max_batches):
+        for i in range(self.max_batches):
+            if i and self.stopped():
+                break
             batch = max(2 * (n - count), 16)
             if self.model.scene is None:
                 x, valid = self.verify(sample_particles(self.model, self.shape, batch, self.rng, self.ranges,
@@ -468,6 +477,8 @@ class GuidedGenerator:
         """
         if len(self._pool) < k:
             fresh, n_valid = self.generate(max(2 * k, self.refill))
+            if n_valid == 0 and self.stopped():
+                return fresh[:k]  # stopped: the swarm ends at its next check, nothing to verify
             if n_valid == 0 and self.model.scene is not None:
                 raise PlanningError(
                     f"scene: no collision-free grasp: GRG found no grasp with 2 or more fingertip "

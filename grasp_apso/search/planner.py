@@ -61,13 +61,13 @@ class GraspProblem:
     """
 
     def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator,
-                 archive: LeaderArchive | None = None):
+                 archive: LeaderArchive | None = None, should_stop: Callable[[], bool] | None = None):
         self.model = model
         self.shape = shape
         self.mu = options.friction
         self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
         self.lower, self.upper = model.lower, model.upper
-        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position)
+        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position, should_stop=should_stop)
         self.archive = archive
         self._evaluations = 0
 
@@ -143,7 +143,8 @@ def plan(
     progress : callable(IterationStats), optional
         Called once per iteration.
     should_stop : callable() -> bool, optional
-        Polled before every iteration; True stops the plan (``cancelled`` in the result).
+        Polled before every iteration and between GRG's batches (the first particles of a
+        large swarm); True stops the plan (``cancelled`` in the result).
         With ``simulate``, also polled while waiting for the convex decomposition of a new
         mesh and before each simulated grasp: True leaves the rest unsimulated
         (``sim_result`` -1, ``candidates_message`` says why), within about one grasp's
@@ -183,7 +184,7 @@ def plan(
     t1 = time.perf_counter()
     archive = LeaderArchive(ARCHIVE_FACTOR * options.max_grasps, options.min_orientation_gap,
                             options.min_position_gap)
-    problem = GraspProblem(model, shape, options, rng, archive)
+    problem = GraspProblem(model, shape, options, rng, archive, should_stop)
     adaptive = options.algorithm == "apso"
     swarm = run_swarm(problem, options.swarm_options(), rng, adaptive, progress, should_stop)
     best = swarm.best if np.isfinite(swarm.best_fitness) else np.clip(swarm.best, model.lower, model.upper)

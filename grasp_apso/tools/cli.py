@@ -51,7 +51,7 @@ from .cli_inputs import (OBSTACLE_FORMATS, algorithms, build_scene, cli_message,
                          safe_name, whole_number)
 from .cli_progress import Interrupt, Progress
 from .export import result_to_dict, scene_to_dict
-from .summary import format_candidates, format_comparison, format_report, summary_line
+from ..presentation.summary import format_candidates, format_comparison, format_report, summary_line
 
 PROG = "grasp_apso_plan"
 DEFAULT_OUT = "grasp_apso_out"

@@ -23,8 +23,7 @@ import re
 import numpy as np
 
 from ..errors import GraspApsoError, UsageError
-from ..model import builtin as builtin_objects
-from ..model import mesh_files, objects
+from ..model.object_source import BuiltinObject, MeshFile, resolve_object
 from ..model.scene import BOX, CYLINDER, SPHERE, Scene
 from ..search.planner import ALGORITHMS
 
@@ -93,13 +92,9 @@ def load_object(args: argparse.Namespace):
     if args.mesh is not None:
         if args.mesh_scale <= 0:
             raise UsageError(f"--mesh-scale: expected a positive number, got {args.mesh_scale:g}")
-        obj = mesh_files.from_file(args.mesh)
-        if args.mesh_scale != 1.0:
-            obj = objects.from_arrays(np.asarray(obj.mesh.vertices) * args.mesh_scale,
-                                      np.asarray(obj.mesh.faces), name=obj.name)
-        return obj, "mesh file " + args.mesh
+        return resolve_object(MeshFile(args.mesh, scale=args.mesh_scale)), "mesh file " + args.mesh
     name = args.object if args.object is not None else "sphere"
-    return builtin_objects.builtin(name.strip().lower()), "built-in"
+    return resolve_object(BuiltinObject(name.strip().lower())), "built-in"
 
 
 def algorithms(text: str) -> tuple[str, ...]:

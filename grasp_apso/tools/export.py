@@ -11,7 +11,7 @@ import numpy as np
 from ..model import poses
 from ..model.hand import FINGER_NAMES
 from ..search.result import GraspCandidate, GraspResult
-from .summary import LINK_NAMES, sim_text, touching_links
+from ..presentation.summary import LINK_NAMES, sim_text, touching_links
 
 __all__ = ["result_to_dict", "candidate_to_dict", "scene_to_dict"]
 

@@ -14,7 +14,7 @@ of mass (+); the palm box and each finger in its colour over its volume to scale
 contacts with their outward normals; when a scene is given, the table as a translucent
 wooden patch with a grid and the obstacles in translucent grey; the approach as a sky-blue
 arrow from the pre-grasp palm to the grasp palm, and the pre-grasp hand drawn faintly at
-the start of that arrow. Colours: :mod:`grasp_apso.tools.palette`.
+the start of that arrow. Colours: :mod:`grasp_apso.presentation.palette`.
 
 The views follow the hand, so every grasp is seen the same way whatever its orientation:
 
@@ -45,7 +45,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ..model.hand import FINGER_NAMES, HandModel, load_hand
-from .palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
+from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR)
 from .scene_drawing import (MM, draw_approach, draw_contacts, draw_hand, draw_object, draw_obstacles, draw_table,
                             palm_corners, table_patch)

@@ -1,6 +1,6 @@
 """Artists of a grasp picture on a 3-D matplotlib axis, in millimetres: the object, the
 hand (solid at the grasp, faint at the pre-grasp), the contacts, the table, the obstacles
-and the approach arrow. Colours come from :mod:`grasp_apso.tools.palette` (one palette
+and the approach arrow. Colours come from :mod:`grasp_apso.presentation.palette` (one palette
 with the RViz markers). Used by :mod:`grasp_apso.tools.plotting`."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from ..model.hand import FINGER_NAMES, HandModel
 from ..model.scene import BOX, CYLINDER, SPHERE
-from .palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
+from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR, rgb)
 from .view3d import nice_length, shaded_colors, transform
 
@@ -60,7 +60,7 @@ def draw_hand(ax, joints: np.ndarray, palm: np.ndarray, hand: HandModel, faint: 
     Solid: links as thick lines over their translucent volumes (returned as ``(line,
     diameter mm)`` for :func:`~grasp_apso.tools.view3d.zoom_to_content`), joint dots, pad
     spheres, links ``touching`` the object dashed. Faint (the pre-grasp): thin lines and
-    the palm outline at :data:`~grasp_apso.tools.palette.PRE_GRASP_ALPHA`.
+    the palm outline at :data:`~grasp_apso.presentation.palette.PRE_GRASP_ALPHA`.
     """
     alpha = PRE_GRASP_ALPHA if faint else 1.0
     for a, b in _BOX_EDGES:
