@@ -10,7 +10,8 @@ a small window in flight, so mesh bytes do not pile up in memory) and hand back
   that dies (segfault, out of memory) breaks the pool: the pool is rebuilt and the tasks
   that were in flight are retried once; a task in flight at a second break is recorded
   as failed.
-- :class:`RayEngine`: one Ray task per object (``num_cpus=1``). Without an address it
+- :class:`RayEngine`: one Ray task per object (``num_cpus=1``, spread over the nodes:
+  Ray's default would fill the driver's node first). Without an address it
   starts a private local Ray (``address="local"``, ``num_cpus=workers``, no dashboard);
   with one (``auto``, ``host:port``, ``ray://host:port``) it joins that cluster, whose
   nodes need grasp_apso installed (no shared file system: the mesh bytes travel with the
@@ -231,10 +232,10 @@ class RayEngine:
             raise InputError(f"--ray: cannot start or join {where}: {type(exc).__name__}: {exc}",
                              "--ray") from None
         self._started_here = True
-        self._remote = ray.remote(num_cpus=1, max_retries=1)(run_task_warm)
+        self._remote = ray.remote(num_cpus=1, max_retries=1, scheduling_strategy="SPREAD")(run_task_warm)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = cpus
-        warm = ray.remote(num_cpus=1)(warm_status)
+        warm = ray.remote(num_cpus=1, scheduling_strategy="SPREAD")(warm_status)
         _check_warm(ray.get([warm.remote(i) for i in range(cpus)]), "--ray", self.close)
         return time.perf_counter() - t0
 
