@@ -1,6 +1,6 @@
 """The README's runnable examples, for the tests that execute them.
 
-An example is the first fenced ``python`` block after an HTML comment
+An example is the first fenced block (``python``, ``text`` ...) after an HTML comment
 ``<!-- readme-example: NAME -->`` in README.md, so that the README shows exactly the code
 the tests run.
 """
@@ -16,7 +16,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 def readme_example(name: str) -> str:
     """The source of README example ``name`` (ValueError when there is none)."""
     text = README.read_text(encoding="utf-8")
-    found = re.search(r"<!-- readme-example: %s -->\s*```python\n(.*?)\n```" % re.escape(name), text, re.S)
+    found = re.search(r"<!-- readme-example: %s -->\s*```\w*\n(.*?)\n```" % re.escape(name), text, re.S)
     if found is None:
         raise ValueError(f"README.md has no example {name!r}")
     return found.group(1)
