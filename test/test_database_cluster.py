@@ -1,7 +1,9 @@
 """``grasp_apso_batch --ray ADDRESS`` on a real two-node Ray cluster on this machine
 (``ray start --head`` + ``ray start --address``, one CPU each): the tasks run on both nodes
 and the database holds the same rows as the local process pool's (same seeds, same grasps;
-only the timing columns differ).
+only the timing columns differ). The cluster turns token authentication on by itself (a
+token in its HOME, as on a machine where a local Ray ran before) and the batch joins it
+without being told (grasp_apso.database.engines._token_auth_as_ray_start).
 
 The reduced version (2 small objects, about a minute with the cluster's start) runs by
 default; the fuller one (6 objects, a manifest with a table and a pose, a corrupt file) is
@@ -11,6 +13,7 @@ marked slow.
 from __future__ import annotations
 
 import math
+import os
 import re
 import subprocess
 import sys
@@ -39,6 +42,24 @@ TIMING = ("planning_time", "created")
 def cluster():
     with two_node_cluster(cpus=1) as running:
         yield running
+
+
+def test_joining_a_cluster_uses_the_token_ray_start_found(tmp_path, monkeypatch):
+    from grasp_apso.database import engines
+
+    monkeypatch.delenv("RAY_AUTH_MODE", raising=False)
+    monkeypatch.delenv("RAY_AUTH_TOKEN", raising=False)
+    monkeypatch.delenv("RAY_AUTH_TOKEN_PATH", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    engines._token_auth_as_ray_start()
+    assert "RAY_AUTH_MODE" not in os.environ  # no token anywhere: Ray's default
+    (tmp_path / ".ray").mkdir()
+    (tmp_path / ".ray" / "auth_token").write_text("0" * 64)
+    engines._token_auth_as_ray_start()
+    assert os.environ["RAY_AUTH_MODE"] == "token"
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")  # an explicit choice is kept
+    engines._token_auth_as_ray_start()
+    assert os.environ["RAY_AUTH_MODE"] == "disabled"
 
 
 def _inputs(folder: Path, full: bool) -> list[str]:
@@ -83,7 +104,7 @@ def test_batch_on_two_nodes_writes_the_local_pools_rows(cluster, tmp_path, full)
            "--ray", cluster.address, "--seed", str(SEED), "--particles", str(OPTIONS.particles),
            "--iterations", str(OPTIONS.iterations), "--grasps", str(OPTIONS.max_grasps),
            "--progress", "lines"]
-    run = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=400)
+    run = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=400, env=cluster.env)
     print(run.stderr[-3000:])
     assert run.returncode == (1 if full else 0), run.stderr  # 1: the corrupt file failed
     assert "(ray, 2 workers on 2 nodes" in run.stderr
