@@ -353,6 +353,8 @@ def test_library_errors_are_named_after_the_options():
     assert cli_inputs.cli_message(large, "--mesh") == "--mesh: too large for a precision grasp"
     assert cli_inputs.cli_message(large) == "--object: too large for a precision grasp"
     assert cli_inputs.cli_message(ValueError("planning: near obstacles[2]")) == "planning: near --obstacle 3"
+    assert cli_inputs.cli_message(ValueError("hand description: /h.yaml is not valid YAML")) == \
+        "--hand: /h.yaml is not valid YAML"
 
 
 @pytest.fixture(scope="module")

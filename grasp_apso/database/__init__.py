@@ -54,10 +54,10 @@ planning_time             float64              s (preparation + search) in the w
 created                   timestamp[us, UTC]
 ========================  ===================  ==============================================
 
-Table ``failures`` (``DB/_failures``, one row per failed attempt): object_id, source_path, source_sha256
-(null when the file could not be read), scale, hand_name, options_key, error_type, error
-(the message, naming the field), retry (False: deterministic, skipped by a rerun unless
-``--retry-failed``), package_version, created.
+Table ``failures`` (``DB/_failures``, one row per failed attempt): object_id, source_path,
+source_sha256 (null when the file could not be read), scale, hand_name, options_key,
+error_type, error (the message, naming the field), retry (False: deterministic, skipped by
+a rerun unless ``--retry-failed``), package_version, created.
 """
 
 from .lookup import GraspDatabase

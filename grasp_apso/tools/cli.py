@@ -48,7 +48,7 @@ from ..model.hand import load_hand
 from ..search.planner import GraspResult, PlanOptions, plan, warm_up
 from ..tunables import default
 from .cli_inputs import (OBSTACLE_FORMATS, algorithms, build_scene, cli_message, finite_number, load_object,
-                         safe_name, whole_number)
+                         safe_name, source_option, whole_number)
 from .cli_progress import Interrupt, Progress
 from .export import result_to_dict, scene_to_dict
 from .summary import format_candidates, format_comparison, format_report, summary_line
@@ -253,7 +253,7 @@ def _run(args: argparse.Namespace, out, err) -> int:
         try:  # the object inside an obstacle: refused before anything is printed
             scene.check_object_placement(np.asarray(obj.mesh.vertices, float))
         except GraspApsoError as exc:
-            raise UsageError(cli_message(exc, "--mesh" if args.mesh else "--object")) from None
+            raise UsageError(cli_message(exc, source_option(args))) from None
     seed = args.seed
     seed_note = ""
     if seed is None:
@@ -311,7 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
     except GraspApsoError as exc:
-        message = cli_message(exc, "--mesh" if args is not None and args.mesh is not None else "--object")
+        message = cli_message(exc, source_option(args))
         if isinstance(exc, ObjectTooLargeError) and args is not None and args.mesh is not None:
             message += " (is the mesh in millimetres? try --mesh-scale 0.001)"
         print(f"{PROG}: error: {message}", file=sys.stderr)
