@@ -182,6 +182,11 @@ def test_quiet_prints_one_line_per_run(capsys):
     (["--approach-distance", "-1"], ["--approach-distance"]),
     (["--grasps", "0"], ["--grasps", "0"]),
     (["--grasps", "51"], ["--grasps", "51"]),
+    (["--mesh-scale", "0.001"], ["--mesh-scale", "--mesh FILE"]),
+    (["--object", "cube", "--mesh-scale", "1"], ["--mesh-scale", "--mesh FILE"]),
+    # The object placed into an obstacle: named after the obstacle's option, not object_pose.
+    (["--object", "cube", "--obstacle", "box:0.2,0,0,0.01,0.01,0.01", "--obstacle", "sphere:0,0,0,0.3"],
+     ["--obstacle 2: the object penetrates this obstacle (SPHERE)"]),
 ])
 def test_bad_input_exits_2_with_a_one_line_message(argv, words, tmp_path, capsys):
     code, out, err = _run(capsys, *SMALL, *argv, "--out", str(tmp_path))
@@ -193,7 +198,27 @@ def test_bad_input_exits_2_with_a_one_line_message(argv, words, tmp_path, capsys
     assert lines[0].startswith("grasp_apso_plan: error: ")
     for word in words:
         assert word in lines[0], (word, lines[0])
+    for ros_field in ("mesh_uri", "object_pose", "object_name", "obstacles[", "support_planes", "max_grasps"):
+        assert ros_field not in lines[0], lines[0]
     assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_json_into_a_missing_folder_is_refused_before_planning(tmp_path, capsys):
+    target = tmp_path / "no" / "such" / "x.json"
+    code, out, err = _run(capsys, "--object", "cube", *SMALL, "--no-plots", "--json", str(target))
+    assert code == 2 and out == ""
+    assert err.strip() == f"grasp_apso_plan: error: --json: the folder {target.parent} does not exist (create it first)"
+    assert not (tmp_path / "no").exists()
+    code, out, err = _run(capsys, "--object", "cube", *SMALL, "--no-plots", "--json", str(tmp_path))
+    assert code == 2 and "--json" in err and "is a folder" in err
+
+
+def test_mesh_errors_name_the_mesh_option(tmp_path, capsys):
+    bad = tmp_path / "bad.stl"
+    bad.write_bytes(b"solid nothing\nnot an stl\n")
+    code, out, err = _run(capsys, "--mesh", str(bad), *SMALL, "--no-plots")
+    assert code == 2 and err.startswith("grasp_apso_plan: error: --mesh: "), err
+    assert "mesh_uri" not in err
 
 
 def _box_file(path, edge):
@@ -212,6 +237,7 @@ def test_mesh_file_and_mesh_scale(tmp_path, capsys):
     _box_file(mm, 50.0)
     code, out, err = _run(capsys, "--mesh", str(mm), *SMALL, "--no-plots")
     assert code == 2 and "too large" in err and "--mesh-scale 0.001" in err and "Traceback" not in err
+    assert err.startswith("grasp_apso_plan: error: --mesh: too large"), err
     code, out, err = _run(capsys, "--mesh", str(mm), "--mesh-scale", "0.001", *SMALL, "--no-plots")
     assert code == 0, err
     assert "50 x 40 x 30 mm" in out
@@ -319,6 +345,17 @@ def test_library_errors_are_named_after_the_options():
         "--approach-distance: must be >= 0"
     assert cli_inputs.cli_message(ValueError("max_grasps: 0 not in 1..50")) == "--grasps: 0 not in 1..50"
     assert cli_inputs.cli_message(ValueError("something else: x")) == "something else: x"
+    # Placement errors of the object go to the scene item they name; others to the object's option.
+    placed = SceneError("object_pose: the object penetrates obstacles[0] (BOX) by 4.0 mm", "object_pose")
+    assert cli_inputs.cli_message(placed) == "--obstacle 1: the object penetrates this obstacle (BOX) by 4.0 mm"
+    sunk = SceneError("object_pose: the object sinks 3.0 mm into support_planes[0] (at most 1 mm)")
+    assert cli_inputs.cli_message(sunk) == "--table: the object sinks 3.0 mm into the table (at most 1 mm)"
+    large = ValueError("object: too large for a precision grasp")
+    assert cli_inputs.cli_message(large, "--mesh") == "--mesh: too large for a precision grasp"
+    assert cli_inputs.cli_message(large) == "--object: too large for a precision grasp"
+    assert cli_inputs.cli_message(ValueError("planning: near obstacles[2]")) == "planning: near --obstacle 3"
+    assert cli_inputs.cli_message(ValueError("hand description: /h.yaml is not valid YAML")) == \
+        "--hand: /h.yaml is not valid YAML"
 
 
 @pytest.fixture(scope="module")
@@ -432,6 +469,7 @@ def test_grasps_prints_the_candidate_table_and_small_multiples(tmp_path, capsys)
     assert cands[0]["joint_positions"] == doc["results"]["apso"]["joint_positions"]
     rows = [l.split() for l in out.split("Candidates:")[1].splitlines()[2:2 + len(cands)]]
     assert [int(r[0]) for r in rows] == [c["rank"] + 1 for c in cands]
+    assert cli.RANK_NOTE in out  # the table's 1-based rank is labelled as such
     assert [float(r[1]) for r in rows] == pytest.approx(quality, abs=1e-3)
     if len(cands) < 3:
         assert doc["results"]["apso"]["candidates_message"]

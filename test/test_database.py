@@ -1,5 +1,6 @@
 """Grasp database: the batch (local processes and a real local Ray), resume, lock, Ctrl-C,
-and the reader's lookup (grasp_apso.database).
+the reader's lookup (grasp_apso.database), the folder opened by pyarrow, pandas and DuckDB
+as it is (and the README's example doing so), databases of the previous layout.
 
 Small swarms (20 particles, 10 iterations, 2 grasps) over three built-in shapes exported to
 STL, plus a missing path and a corrupt file. Everything runs for real: worker processes,
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -20,11 +22,13 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from readme_blocks import run_readme_example
+
 from grasp_apso.database.batch import BatchConfig, run_batch
 from grasp_apso.database.inputs import expand_inputs
 from grasp_apso.database.lookup import GraspDatabase
 from grasp_apso.database.schema import GRASP_SCHEMA
-from grasp_apso.database.store import GraspStore
+from grasp_apso.database.store import LEGACY_MARKER, MARKER, GraspStore
 from grasp_apso.errors import DatabaseError, InputError
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hand import load_hand, wrist_rotation
@@ -90,12 +94,12 @@ def test_batch_writes_rows_and_records_failures(first_run):
         assert row["package_version"]
     cube = from_file(str(Path(rows[0]["source_path"]).with_name("cube.stl")))
     assert cube.mesh_hash in {r["mesh_hash"] for r in rows}
-    failures = pq.ParquetDataset(out / "failures").read().to_pylist()
+    failures = pq.read_table(out / "_failures").to_pylist()
     by_id = {f["object_id"]: f for f in failures}
     assert set(by_id) == {"missing", "corrupt"}
     assert "file not found" in by_id["missing"]["error"] and by_id["missing"]["retry"]
     assert by_id["corrupt"]["error"].startswith("mesh_uri:") and not by_id["corrupt"]["retry"]
-    assert not (out / "LOCK").exists()
+    assert not (out / "_LOCK").exists()
 
 
 def test_rerun_skips_done_objects_and_is_fast(first_run):
@@ -138,7 +142,7 @@ def test_lock_held_by_live_process_refused_and_stale_lock_taken_over(meshes, tmp
     store.create()
     holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     try:
-        (out / "LOCK").write_text(json.dumps({"pid": holder.pid, "host": os.uname().nodename,
+        (out / "_LOCK").write_text(json.dumps({"pid": holder.pid, "host": os.uname().nodename,
                                               "started": "then"}))
         with pytest.raises(DatabaseError) as info:
             run_batch([str(meshes["missing"])], _config(out))
@@ -150,7 +154,7 @@ def test_lock_held_by_live_process_refused_and_stale_lock_taken_over(meshes, tmp
     # The holder is gone: its lock is stale and the next batch takes it over.
     summary = run_batch([str(meshes["missing"])], _config(out))
     assert summary.failed == 1
-    assert not (out / "LOCK").exists()
+    assert not (out / "_LOCK").exists()
 
 
 def test_ctrl_c_leaves_a_readable_database(meshes, tmp_path):
@@ -182,7 +186,7 @@ def test_ctrl_c_leaves_a_readable_database(meshes, tmp_path):
     assert rc == 130, err
     db = GraspDatabase.open(out)
     assert 1 <= len(db) < 6
-    assert not (out / "LOCK").exists()
+    assert not (out / "_LOCK").exists()
     assert not list(out.rglob(".*.tmp"))
 
 
@@ -268,8 +272,6 @@ def test_lookup_filters_by_scene_and_is_fast(first_run, meshes):
 def test_corrupt_database_names_the_parameter(first_run, tmp_path):
     out, _, _, _ = first_run
     broken = tmp_path / "broken.db"
-    import shutil
-
     shutil.copytree(out, broken)
     part = sorted((broken / "grasps").glob("part-*.parquet"))[0]
     part.write_bytes(b"PAR1" + b"\x00garbage" * 50)
@@ -300,3 +302,91 @@ def test_manifests_and_bad_rows(tmp_path, meshes):
     assert "scale" in specs["c"].error and "pose" in specs["d"].error
     assert specs["e"].pose == (0, 0, 0, 0, 0, 0, 1)
     assert specs["m.jsonl:2"].error.startswith("manifest:")
+
+
+def _grasp_rows(out: Path) -> list[dict]:
+    """The grasps, read part file by part file (independent of directory discovery)."""
+    rows = []
+    for part in sorted((out / "grasps").glob("part-*.parquet")):
+        rows += pq.ParquetFile(part).read().to_pylist()
+    return rows
+
+
+def test_parquet_readers_open_the_folder_as_it_is(first_run, tmp_path):
+    import duckdb
+    import pandas as pd
+
+    out, _, _, _ = first_run
+    db = tmp_path / "grasps.db"
+    shutil.copytree(out, db)
+    # As during a batch: its lock and a part being written are there too.
+    (db / "_LOCK").write_text(json.dumps({"pid": 1, "host": "elsewhere", "started": "now"}))
+    (db / "grasps" / ".part-00000000000000000000-1-00001.parquet.tmp").write_bytes(b"PAR1 half")
+    expected = sorted((r["object_id"], r["rank"], r["grasp_quality"]) for r in _grasp_rows(db))
+    assert len(expected) >= len(SHAPES)
+    table = pq.read_table(db)
+    assert table.schema.remove_metadata() == GRASP_SCHEMA.remove_metadata()
+    assert sorted(zip(*(table.column(c).to_pylist() for c in ("object_id", "rank", "grasp_quality")))) == expected
+    df = pd.read_parquet(db)
+    assert sorted(zip(df["object_id"], df["rank"], df["grasp_quality"])) == expected
+    assert list(df["wrist_position"].iloc[0]) == table.column("wrist_position")[0].as_py()
+    rows = duckdb.sql(f"SELECT object_id, rank, grasp_quality FROM read_parquet('{db}/**/*.parquet')").fetchall()
+    assert sorted(rows) == expected
+    failures = pq.read_table(db / "_failures")
+    assert {"missing", "corrupt"} <= set(failures.column("object_id").to_pylist())
+
+
+def test_readme_database_example_runs(first_run, tmp_path, monkeypatch, capsys):
+    out, _, _, _ = first_run
+    (tmp_path / "grasps.db").symlink_to(out, target_is_directory=True)
+    monkeypatch.chdir(tmp_path)
+    ns = run_readme_example("database")
+    rows = _grasp_rows(out)
+    assert ns["table"].num_rows == len(ns["df"]) == len(rows)
+    per_object = {}
+    for r in rows:
+        n, best = per_object.get(r["object_id"], (0, -1.0))
+        per_object[r["object_id"]] = (n + 1, max(best, r["grasp_quality"]))
+    assert [(o, n, pytest.approx(b)) for o, n, b in ns["per_object"]] == \
+        [(o, n, b) for o, (n, b) in sorted(per_object.items())]
+    assert list(ns["best"]["object_id"])[0] == max(
+        (r for r in rows if r["rank"] == 0), key=lambda r: r["grasp_quality"])["object_id"]
+    assert {"missing", "corrupt"} <= set(ns["failures"]["object_id"])
+    assert "corrupt" in capsys.readouterr().out
+
+
+def _to_first_layout(db: Path) -> None:
+    """Rewrite a database in the previous layout (grasp_database.json, failures/*.parquet)."""
+    (db / MARKER).rename(db / LEGACY_MARKER)
+    (db / "failures").mkdir()
+    for part in (db / "_failures").glob("part-*.parq"):
+        part.rename(db / "failures" / (part.stem + ".parquet"))
+    (db / "_failures").rmdir()
+
+
+def test_previous_layout_is_read_and_moved_by_the_next_batch(first_run, meshes, tmp_path):
+    out, inputs, _, _ = first_run
+    db = tmp_path / "old.db"
+    shutil.copytree(out, db)
+    _to_first_layout(db)
+    failures_before = pq.read_table(db / "failures").num_rows
+    assert len(GraspDatabase.open(db)) == len(SHAPES)  # the node reads it as it is
+    # An older batch still writing (its LOCK, a live pid on this host): refused, nothing moved.
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (db / "LOCK").write_text(json.dumps({"pid": holder.pid, "host": os.uname().nodename}))
+        with pytest.raises(DatabaseError, match=f"pid {holder.pid}"):
+            run_batch(inputs, _config(db))
+        assert (db / LEGACY_MARKER).is_file() and not (db / "_LOCK").exists()
+    finally:
+        holder.kill()
+        holder.wait(timeout=10)
+    # Its pid gone: the next batch moves the database and resumes from the old failures
+    # (the corrupt file, a deterministic failure, is skipped; the missing one retried).
+    again = run_batch(inputs, _config(db))
+    assert (again.planned, again.skipped, again.failed) == (0, 4, 1)
+    names = sorted(p.name for p in db.iterdir())
+    assert names == ["_failures", "_grasp_database.json", "grasps"]
+    assert pq.read_table(db / "_failures").num_rows == failures_before + 1
+    assert pq.read_table(db).num_rows == len(_grasp_rows(out))
+    assert json.loads((db / MARKER).read_text())["layout"] == 2

@@ -7,11 +7,13 @@ manifests), :mod:`.store` (the directory, atomic part files, the writer lock),
 :mod:`.schema` (the tables), :mod:`.lookup` (the reader for the node). Nothing here imports
 rclpy; pyarrow is needed, Ray only for ``--ray``.
 
-A database is a directory (``DB/grasp_database.json`` marker, ``DB/grasps/part-*.parquet``,
-``DB/failures/part-*.parquet``, ``DB/LOCK`` while a batch writes); any Parquet reader
-(pyarrow, pandas, DuckDB, Spark) reads ``DB/grasps`` as one table. Part files are only
-ever added, each atomically (temporary file + rename), so appending across runs and
-reading during a batch are safe.
+A database is a directory (``DB/_grasp_database.json`` marker, ``DB/grasps/part-*.parquet``,
+``DB/_failures/part-*.parq``, ``DB/_LOCK`` while a batch writes) that Parquet readers open
+as the grasps table as it is: ``pyarrow.parquet.read_table(DB)``, ``pandas.read_parquet(DB)``
+and Spark skip names starting with ``_`` or ``.``, DuckDB's ``read_parquet('DB/**/*.parquet')``
+matches the grasps only (see :mod:`.store`). Part files are only ever added, each
+atomically (temporary file + rename), so appending across runs and reading during a batch
+are safe.
 
 Table ``grasps`` (one row per grasp; poses in the OBJECT frame; m, rad, s; quaternions x y z w)
 
@@ -52,10 +54,10 @@ planning_time             float64              s (preparation + search) in the w
 created                   timestamp[us, UTC]
 ========================  ===================  ==============================================
 
-Table ``failures`` (one row per failed attempt): object_id, source_path, source_sha256
-(null when the file could not be read), scale, hand_name, options_key, error_type, error
-(the message, naming the field), retry (False: deterministic, skipped by a rerun unless
-``--retry-failed``), package_version, created.
+Table ``failures`` (``DB/_failures``, one row per failed attempt): object_id, source_path,
+source_sha256 (null when the file could not be read), scale, hand_name, options_key,
+error_type, error (the message, naming the field), retry (False: deterministic, skipped by
+a rerun unless ``--retry-failed``), package_version, created.
 """
 
 from .lookup import GraspDatabase

@@ -110,6 +110,8 @@ class BatchSummary:
     work_seconds: float = 0.0
     interrupted: bool = False
     failures: list[tuple[str, str]] = field(default_factory=list)
+    #: Objects each Ray node worked on (node id -> count; empty for the local pool).
+    nodes: dict[str, int] = field(default_factory=dict)
 
     @property
     def objects_per_minute(self) -> float:
@@ -260,6 +262,7 @@ def run_batch(inputs: list[str], config: BatchConfig, stream: TextIO | None = No
     store.create()
     store.acquire()
     try:
+        store.migrate()
         _run_locked(specs, config, store, summary, stream, on_written)
     finally:
         store.release()
@@ -329,6 +332,8 @@ def _run_locked(specs: list[ObjectSpec], config: BatchConfig, store: GraspStore,
             if engine.in_flight == 0:
                 break
             for task, outcome in engine.next_done(timeout=0.5):
+                if outcome.node:
+                    summary.nodes[outcome.node] = summary.nodes.get(outcome.node, 0) + 1
                 _record(outcome, task, hand.name, buffers, summary, done_meshes)
                 progress.update(_describe(outcome))
                 if on_written is not None:
@@ -391,9 +396,10 @@ def _record(outcome: Outcome, task: ObjectTask, hand_name: str, buffers: _Buffer
 
 
 def _describe(outcome: Outcome) -> str:
+    where = f" on node {outcome.node}" if outcome.node else ""
     if outcome.ok:
-        return f"{outcome.object_id}: {outcome.n_grasps} grasps in {outcome.seconds:.1f} s"
-    return f"{outcome.object_id}: FAILED {outcome.error_type}: {outcome.error[:120]}"
+        return f"{outcome.object_id}: {outcome.n_grasps} grasps in {outcome.seconds:.1f} s{where}"
+    return f"{outcome.object_id}{where}: FAILED {outcome.error_type}: {outcome.error[:120]}"
 
 
 def _ignore_sigint():

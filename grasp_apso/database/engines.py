@@ -10,7 +10,8 @@ a small window in flight, so mesh bytes do not pile up in memory) and hand back
   that dies (segfault, out of memory) breaks the pool: the pool is rebuilt and the tasks
   that were in flight are retried once; a task in flight at a second break is recorded
   as failed.
-- :class:`RayEngine`: one Ray task per object (``num_cpus=1``). Without an address it
+- :class:`RayEngine`: one Ray task per object (``num_cpus=1``, spread over the nodes:
+  Ray's default would fill the driver's node first). Without an address it
   starts a private local Ray (``address="local"``, ``num_cpus=workers``, no dashboard);
   with one (``auto``, ``host:port``, ``ray://host:port``) it joins that cluster, whose
   nodes need grasp_apso installed (no shared file system: the mesh bytes travel with the
@@ -186,6 +187,35 @@ def _check_warm(status: list[tuple[int, str]], field: str, close) -> None:
         raise PlanningError(f"{field}: the workers cannot plan (warm_up failed: {errors[0]})", field)
 
 
+#: Where Ray keeps the token of its token authentication when RAY_AUTH_TOKEN_PATH is unset.
+RAY_DEFAULT_TOKEN = os.path.join("~", ".ray", "auth_token")
+
+
+def _token_auth_as_ray_start() -> None:
+    """Join a cluster with the authentication ``ray start`` chose for it.
+
+    Ray 2.60's ``ray start`` turns token authentication on when ``RAY_AUTH_MODE`` is unset and
+    a token exists (``~/.ray/auth_token``, which any local ``ray.init()`` writes), but a driver
+    joining with ``ray.init(address=...)`` then sends no token and is refused. Do as ``ray
+    start`` does; an explicit ``RAY_AUTH_MODE`` is left as it is. Call it before the first
+    ``import ray`` of the process (Ray reads the mode once).
+    """
+    if "RAY_AUTH_MODE" in os.environ:
+        return
+    path = os.environ.get("RAY_AUTH_TOKEN_PATH") or os.path.expanduser(RAY_DEFAULT_TOKEN)
+    if os.environ.get("RAY_AUTH_TOKEN") or os.path.isfile(path):
+        os.environ["RAY_AUTH_MODE"] = "token"
+
+
+def _chain(exc: BaseException | None, limit: int = 10) -> list[BaseException]:
+    """``exc`` and its causes / contexts (at most ``limit``)."""
+    out: list[BaseException] = []
+    while exc is not None and len(out) < limit:
+        out.append(exc)
+        exc = exc.__cause__ or exc.__context__
+    return out
+
+
 class RayEngine:
     """Ray tasks, one per object.
 
@@ -210,6 +240,8 @@ class RayEngine:
 
     def start(self) -> float:
         t0 = time.perf_counter()
+        if self.address:
+            _token_auth_as_ray_start()  # before Ray is imported: it reads the mode once
         try:
             import ray
         except ImportError:
@@ -228,13 +260,17 @@ class RayEngine:
                          object_store_memory=256 * 1024 * 1024)
         except Exception as exc:  # noqa: BLE001 - ConnectionError, RuntimeError, ValueError ...
             where = self.address or "a local Ray"
-            raise InputError(f"--ray: cannot start or join {where}: {type(exc).__name__}: {exc}",
+            hint = ""
+            if any("InvalidAuthToken" in str(e) or "AuthenticationError" in str(e) for e in _chain(exc)):
+                hint = (" (the cluster wants a token: set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN_PATH "
+                        "to the token file its nodes use)")
+            raise InputError(f"--ray: cannot start or join {where}: {type(exc).__name__}: {exc}{hint}",
                              "--ray") from None
         self._started_here = True
-        self._remote = ray.remote(num_cpus=1, max_retries=1)(run_task_warm)
+        self._remote = ray.remote(num_cpus=1, max_retries=1, scheduling_strategy="SPREAD")(run_task_warm)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = cpus
-        warm = ray.remote(num_cpus=1)(warm_status)
+        warm = ray.remote(num_cpus=1, scheduling_strategy="SPREAD")(warm_status)
         _check_warm(ray.get([warm.remote(i) for i in range(cpus)]), "--ray", self.close)
         return time.perf_counter() - t0
 

@@ -4,16 +4,26 @@ writer at a time.
 Layout::
 
     DB/
-      grasp_database.json        marker: format name, schema version, creation time
+      _grasp_database.json       marker: format name, schema version, layout, creation time
       grasps/part-*.parquet      one row per grasp (schema.GRASP_SCHEMA)
-      failures/part-*.parquet    one row per failed attempt (schema.FAILURE_SCHEMA)
-      LOCK                       present while a batch writes: JSON {pid, host, started}
+      _failures/part-*.parq      one row per failed attempt (schema.FAILURE_SCHEMA), Parquet
+      _LOCK                      present while a batch writes: JSON {pid, host, started}
+
+The directory opens as the grasps table in any Parquet reader as it is:
+``pyarrow.parquet.read_table(DB)`` and ``pandas.read_parquet(DB)`` skip every file and folder
+whose name starts with ``_`` or ``.`` (the marker, the lock, the failures, temporary
+files), and the failures' ``.parq`` suffix keeps them out of DuckDB's
+``read_parquet('DB/**/*.parquet')``, whose glob does not skip such names. The failures
+read as ``read_table(DB / "_failures")``.
+
+Databases written before this layout (``grasp_database.json``, ``failures/*.parquet``,
+``LOCK``) are read as they are and moved to it by the next batch, under the lock
+(:meth:`GraspStore.migrate`).
 
 Appending is safe: a writer only ever adds new part files, each written to a hidden
 temporary file (``.part-*.tmp``) that is fsync'ed and then renamed into place
 (``os.replace``, atomic on POSIX), so a reader or an interrupted batch only ever sees whole
-files. Readers need no lock; files whose name starts with ``.`` are ignored (leftover
-temporary files are removed by the next writer).
+files. Readers need no lock (leftover temporary files are removed by the next writer).
 
 The lock: created with ``O_CREAT | O_EXCL``. Another live process on this host holding it
 (or any holder on another host) is a :class:`~grasp_apso.errors.DatabaseError`; a lock whose
@@ -29,6 +39,7 @@ import os
 import signal
 import socket
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import pyarrow as pa
@@ -37,10 +48,29 @@ import pyarrow.parquet as pq
 from ..errors import DatabaseError
 from .schema import FAILURE_SCHEMA, FORMAT_NAME, GRASP_SCHEMA, SCHEMA_VERSION
 
-__all__ = ["GraspStore", "MARKER", "pid_alive", "read_parts"]
+__all__ = ["GraspStore", "MARKER", "LEGACY_MARKER", "TABLES", "pid_alive", "read_parts"]
 
-MARKER = "grasp_database.json"
-TABLES = {"grasps": GRASP_SCHEMA, "failures": FAILURE_SCHEMA}
+#: The marker; a leading ``_`` hides it from Parquet readers' directory discovery.
+MARKER = "_grasp_database.json"
+#: Layout of the directory (1: marker, failures and lock without the leading ``_``).
+LAYOUT = 2
+LOCK = "_LOCK"
+#: Names of the first layout, read as they are and migrated by the next batch.
+LEGACY_MARKER, LEGACY_FAILURES, LEGACY_LOCK = "grasp_database.json", "failures", "LOCK"
+
+
+@dataclass(frozen=True)
+class _Table:
+    """Where one table's part files live: ``DB/<folder>/part-*<suffix>``."""
+
+    folder: str
+    suffix: str
+    schema: pa.Schema
+
+
+TABLES = {"grasps": _Table("grasps", ".parquet", GRASP_SCHEMA),
+          # Not *.parquet: a glob over the database (DuckDB's DB/**/*.parquet) reads grasps only.
+          "failures": _Table("_failures", ".parq", FAILURE_SCHEMA)}
 
 
 def pid_alive(pid: int) -> bool:
@@ -56,14 +86,14 @@ def pid_alive(pid: int) -> bool:
     return True
 
 
-def _part_files(folder: Path) -> list[Path]:
+def _part_files(folder: Path, suffix: str = ".parquet") -> list[Path]:
     if not folder.is_dir():
         return []
-    return sorted(p for p in folder.glob("part-*.parquet") if p.is_file())
+    return sorted(p for p in folder.glob(f"part-*{suffix}") if p.is_file())
 
 
 def read_parts(folder: Path, schema: pa.Schema, columns: list[str] | None = None,
-               field: str = "grasp_database") -> pa.Table:
+               field: str = "grasp_database", suffix: str = ".parquet") -> pa.Table:
     """All part files of one table concatenated (``columns`` only, when given).
 
     Raises
@@ -74,7 +104,7 @@ def read_parts(folder: Path, schema: pa.Schema, columns: list[str] | None = None
     """
     want = schema if columns is None else pa.schema([schema.field(c) for c in columns])
     tables = []
-    for path in _part_files(folder):
+    for path in _part_files(folder, suffix):
         tables.append(read_file(path, want, field))
     if not tables:
         return want.empty_table()
@@ -118,30 +148,35 @@ class GraspStore:
         """Create the directory and marker (no-op when it is already a database)."""
         if self.root.exists() and not self.root.is_dir():
             raise DatabaseError(f"{self.field}: {self.root} exists and is not a directory", self.field)
-        marker = self.root / MARKER
-        if self.root.is_dir() and any(self.root.iterdir()) and not marker.is_file():
+        marker = self._marker()
+        if self.root.is_dir() and any(self.root.iterdir()) and marker is None:
             raise DatabaseError(
                 f"{self.field}: {self.root} is a non-empty directory that is not a grasp database "
                 f"(no {MARKER})", self.field)
         try:
-            for name in TABLES:
-                (self.root / name).mkdir(parents=True, exist_ok=True)
-            if not marker.is_file():
-                text = json.dumps({"format": FORMAT_NAME, "schema_version": SCHEMA_VERSION,
-                                   "created": _now().isoformat()}, indent=1)
-                self._atomic_bytes(marker, text.encode())
+            for table in TABLES.values():
+                (self.root / table.folder).mkdir(parents=True, exist_ok=True)
+            if marker is None:
+                self._atomic_bytes(self.root / MARKER, _marker_text())
         except OSError as exc:
             raise DatabaseError(f"{self.field}: cannot create {self.root}: {exc.strerror or exc}",
                                 self.field) from None
 
+    def _marker(self) -> Path | None:
+        """The marker file (this layout's name, else the first layout's), None when absent."""
+        for name in (MARKER, LEGACY_MARKER):
+            if (self.root / name).is_file():
+                return self.root / name
+        return None
+
     def check_marker(self) -> None:
         """Raise DatabaseError unless ``root`` holds a readable marker of this format."""
-        marker = self.root / MARKER
+        marker = self._marker()
+        if marker is None:
+            raise DatabaseError(f"{self.field}: {self.root} is not a grasp database (no {MARKER})",
+                                self.field)
         try:
             data = json.loads(marker.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise DatabaseError(f"{self.field}: {self.root} is not a grasp database (no {MARKER})",
-                                self.field) from None
         except (OSError, ValueError) as exc:
             raise DatabaseError(f"{self.field}: cannot read {marker}: {exc}", self.field) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
@@ -151,10 +186,45 @@ class GraspStore:
                 f"{self.field}: {self.root} has schema version {data.get('schema_version')}, this "
                 f"grasp_apso reads up to {SCHEMA_VERSION}", self.field)
 
+    def migrate(self) -> None:
+        """Move a database of the first layout to this one (call with the lock held).
+
+        ``failures/part-*.parquet`` -> ``_failures/part-*.parq``; ``grasp_database.json`` ->
+        ``_grasp_database.json``; a ``LOCK`` of an older batch that still runs is refused
+        (DatabaseError), a stale one removed. Each step is a rename, so an interrupted
+        migration leaves a database that reads and migrates again.
+        """
+        legacy_lock = self.root / LEGACY_LOCK
+        holder = _read_json(legacy_lock) if legacy_lock.exists() else None
+        if holder is not None:
+            self._refuse_if_held(holder, socket.gethostname(), legacy_lock)
+        legacy_lock.unlink(missing_ok=True)
+        old = self.root / LEGACY_FAILURES
+        new = self.root / TABLES["failures"].folder
+        try:
+            if old.is_dir():
+                new.mkdir(exist_ok=True)
+                for part in _part_files(old):
+                    os.replace(part, new / (part.stem + TABLES["failures"].suffix))
+                for tmp in old.glob(".part-*.tmp"):
+                    tmp.unlink(missing_ok=True)
+                if not any(old.iterdir()):
+                    old.rmdir()
+            if (self.root / LEGACY_MARKER).is_file():
+                if (self.root / MARKER).is_file():
+                    (self.root / LEGACY_MARKER).unlink()
+                else:
+                    data = _read_json(self.root / LEGACY_MARKER) or {}
+                    self._atomic_bytes(self.root / MARKER, _marker_text(data.get("created")))
+                    (self.root / LEGACY_MARKER).unlink()
+        except OSError as exc:
+            raise DatabaseError(f"{self.field}: cannot move {self.root} to the current layout: "
+                                f"{exc.strerror or exc}", self.field) from None
+
     # ------------------------------------------------------------------ lock
     @property
     def lock_path(self) -> Path:
-        return self.root / "LOCK"
+        return self.root / LOCK
 
     def acquire(self) -> None:
         """Take the writer lock or raise DatabaseError naming the holder."""
@@ -181,13 +251,17 @@ class GraspStore:
             return
         raise DatabaseError(f"{self.field}: could not take the lock {self.lock_path}", self.field)
 
-    def _refuse_or_take_over(self, holder: dict, host: str) -> None:
+    def _refuse_if_held(self, holder: dict, host: str, path: Path) -> None:
+        """DatabaseError when the lock ``holder`` (read from ``path``) may still be alive."""
         pid = int(holder.get("pid", -1)) if str(holder.get("pid", "")).lstrip("-").isdigit() else -1
         if holder.get("host") != host or pid_alive(pid):
             raise DatabaseError(
                 f"{self.field}: {self.root} is locked by another batch (pid {pid} on host "
                 f"{holder.get('host')}, since {holder.get('started', '?')}); wait for it to finish, "
-                f"or delete {self.lock_path} if that process is gone", self.field)
+                f"or delete {path} if that process is gone", self.field)
+
+    def _refuse_or_take_over(self, holder: dict, host: str) -> None:
+        self._refuse_if_held(holder, host, self.lock_path)
         stale = self.root / f".LOCK.stale.{os.getpid()}"
         try:
             os.rename(self.lock_path, stale)
@@ -218,8 +292,8 @@ class GraspStore:
         self._locked = False
 
     def _clean_temporaries(self) -> None:
-        for name in TABLES:
-            for tmp in (self.root / name).glob(".part-*.tmp"):
+        for table in TABLES.values():
+            for tmp in (self.root / table.folder).glob(".part-*.tmp"):
                 tmp.unlink(missing_ok=True)
 
     # ------------------------------------------------------------------ writing
@@ -229,13 +303,13 @@ class GraspStore:
         SIGINT is blocked while the file is written and renamed, so Ctrl-C cannot leave
         half a part behind (it is delivered right after).
         """
-        schema = TABLES[table_name]
+        table_def = TABLES[table_name]
         if not columns or not next(iter(columns.values())):
             return None
-        table = pa.Table.from_pydict(columns, schema=schema)
+        table = pa.Table.from_pydict(columns, schema=table_def.schema)
         self._seq += 1
-        name = f"part-{time.time_ns():020d}-{os.getpid()}-{self._seq:05d}.parquet"
-        final = self.root / table_name / name
+        name = f"part-{time.time_ns():020d}-{os.getpid()}-{self._seq:05d}{table_def.suffix}"
+        final = self.root / table_def.folder / name
         tmp = final.with_name(f".{name}.tmp")
         blocked = _block_sigint()
         try:
@@ -264,10 +338,21 @@ class GraspStore:
     # ------------------------------------------------------------------ reading
     def read(self, table_name: str, columns: list[str] | None = None) -> pa.Table:
         """A whole table (all part files), ``columns`` only when given."""
-        return read_parts(self.root / table_name, TABLES[table_name], columns, self.field)
+        t = TABLES[table_name]
+        table = read_parts(self.root / t.folder, t.schema, columns, self.field, t.suffix)
+        legacy = self.root / LEGACY_FAILURES
+        if table_name == "failures" and legacy.is_dir():  # a first-layout database not yet migrated
+            table = pa.concat_tables([table, read_parts(legacy, t.schema, columns, self.field)])
+        return table
 
     def part_count(self, table_name: str) -> int:
-        return len(_part_files(self.root / table_name))
+        t = TABLES[table_name]
+        return len(_part_files(self.root / t.folder, t.suffix))
+
+
+def _marker_text(created: str | None = None) -> bytes:
+    return json.dumps({"format": FORMAT_NAME, "schema_version": SCHEMA_VERSION, "layout": LAYOUT,
+                       "created": created or _now().isoformat()}, indent=1).encode()
 
 
 def _read_json(path: Path) -> dict | None:

@@ -106,6 +106,8 @@ class Outcome:
     retry: bool = False
     seconds: float = 0.0
     worker: str = ""
+    #: The Ray node it ran on ("" in the local pool).
+    node: str = ""
 
 
 def init_worker() -> None:
@@ -245,9 +247,22 @@ def run_task(task: ObjectTask) -> Outcome:
 
 
 def run_task_warm(task: ObjectTask) -> Outcome:
-    """:func:`run_task` after a once-per-process warm-up (the Ray task body)."""
+    """:func:`run_task` after a once-per-process warm-up (the Ray task body); the outcome
+    names the Ray node it ran on."""
     ensure_warm()
-    return run_task(task)
+    out = run_task(task)
+    out.node = _ray_node_id()
+    return out
+
+
+def _ray_node_id() -> str:
+    """This process's Ray node id ("" outside a Ray worker)."""
+    try:
+        import ray
+
+        return ray.get_runtime_context().get_node_id() if ray.is_initialized() else ""
+    except Exception:  # noqa: BLE001 - Ray missing or not a Ray worker: no node id
+        return ""
 
 
 def _first_line(exc: BaseException, limit: int = 500) -> str:

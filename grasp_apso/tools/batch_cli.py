@@ -111,9 +111,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: interrupted", file=err)
         return 130
     rate = f", {summary.objects_per_minute:.1f} objects/min" if summary.planned else ""
+    nodes = f" on {len(summary.nodes)} nodes" if len(summary.nodes) > 1 else ""
     print(f"[{PROG}] planned {summary.planned}, skipped {summary.skipped}, failed {summary.failed}; "
           f"{summary.grasps} grasps in {summary.seconds:.1f} s ({summary.engine}, {summary.workers} "
-          f"workers{rate}) -> {summary.out}", file=err)
+          f"workers{nodes}{rate}) -> {summary.out}", file=err)
     for object_id, error in summary.failures[:20]:
         print(f"  failed: {object_id}: {error}", file=err)
     if len(summary.failures) > 20:

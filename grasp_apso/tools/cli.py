@@ -48,13 +48,16 @@ from ..model.hand import load_hand
 from ..search.planner import GraspResult, PlanOptions, plan, warm_up
 from ..tunables import default
 from .cli_inputs import (OBSTACLE_FORMATS, algorithms, build_scene, cli_message, finite_number, load_object,
-                         safe_name, whole_number)
+                         safe_name, source_option, whole_number)
 from .cli_progress import Interrupt, Progress
 from .export import result_to_dict, scene_to_dict
 from ..presentation.summary import format_candidates, format_comparison, format_report, summary_line
 
 PROG = "grasp_apso_plan"
 DEFAULT_OUT = "grasp_apso_out"
+#: Printed under the candidate table, whose rank column counts from 1 for reading.
+RANK_NOTE = ("  rank: 1 = best here; --json, the Python API (GraspCandidate.rank) and the ROS reply "
+             "count from 0 (rank 1 = candidates[0])")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -83,8 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--mesh", metavar="FILE",
                      help=f"mesh file ({', '.join(objects.MESH_FORMATS).upper()}), coordinates in metres "
                           "(see --mesh-scale)")
-    parser.add_argument("--mesh-scale", type=finite_number, default=1.0, metavar="S",
-                        help="multiply the mesh coordinates by S, e.g. 0.001 for a file in mm (default 1)")
+    parser.add_argument("--mesh-scale", type=finite_number, default=None, metavar="S",
+                        help="with --mesh: multiply the mesh coordinates by S, e.g. 0.001 for a file in mm "
+                             "(default 1)")
     parser.add_argument("--algorithm", default="apso", metavar="ALG",
                         help="apso (default), pso (simple PSO baseline), or both (same seed, compared)")
     parser.add_argument("--particles", type=whole_number, default=60, metavar="N",
@@ -124,7 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="no progress and no tables: one summary line per run (and the file paths)")
     parser.add_argument("--json", metavar="FILE", default=None,
                         help="write a machine-readable summary (SI units) with every candidate to FILE "
-                             "('-': standard output, the report then goes to standard error)")
+                             "in an existing folder ('-': standard output, the report then goes to "
+                             "standard error)")
     return parser
 
 
@@ -168,6 +173,7 @@ def _plan_all(args, algorithms_, obj, hand, scene, seed, out, err, show) -> dict
                 print("", file=out)
                 if args.grasps > 1 or args.simulate:
                     print(format_candidates(result), file=out)
+                    print(RANK_NOTE, file=out)
                     print("", file=out)
                 out.flush()
             if interrupt.stop:
@@ -211,19 +217,43 @@ def _write_json(args, results, obj, source, shape_name, scene, seed, written) ->
     if args.json == "-":
         sys.stdout.write(text + "\n")
         return
-    os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    with open(args.json, "w", encoding="utf-8") as fh:
+    with open(args.json, "w", encoding="utf-8") as fh:  # its folder was checked before planning
         fh.write(text + "\n")
     written.append(args.json)
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse option combinations argparse cannot see, before anything is loaded or planned:
+    ``--mesh-scale`` without ``--mesh``; ``--json`` into a folder that does not exist (it is
+    not created) or onto a folder. Sets the default ``--mesh-scale`` (1)."""
+    if args.mesh_scale is not None and args.mesh is None:
+        raise UsageError("--mesh-scale: applies to --mesh FILE only (the built-in objects are in "
+                         "metres already)")
+    if args.mesh_scale is None:
+        args.mesh_scale = 1.0
+    if args.json not in (None, "-"):
+        folder = os.path.dirname(os.path.abspath(args.json))
+        if os.path.isdir(args.json):
+            raise UsageError(f"--json: {args.json} is a folder; give a file name")
+        if not os.path.isdir(folder):
+            raise UsageError(f"--json: the folder {folder} does not exist (create it first)")
+        if not os.access(folder, os.W_OK):
+            raise UsageError(f"--json: cannot write into {folder} (permission denied)")
+
+
 def _run(args: argparse.Namespace, out, err) -> int:
+    check_arguments(args)
     algorithms_ = algorithms(args.algorithm)
     for alg in algorithms_:
         _options(args, alg)  # bad options fail before anything is loaded
     hand = load_hand(args.hand)
     obj, source = load_object(args)
     scene = build_scene(obj, args.table, args.obstacle)
+    if scene is not None:
+        try:  # the object inside an obstacle: refused before anything is printed
+            scene.check_object_placement(np.asarray(obj.mesh.vertices, float))
+        except GraspApsoError as exc:
+            raise UsageError(cli_message(exc, source_option(args))) from None
     seed = args.seed
     seed_note = ""
     if seed is None:
@@ -281,7 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
     except GraspApsoError as exc:
-        message = cli_message(exc)
+        message = cli_message(exc, source_option(args))
         if isinstance(exc, ObjectTooLargeError) and args is not None and args.mesh is not None:
             message += " (is the mesh in millimetres? try --mesh-scale 0.001)"
         print(f"{PROG}: error: {message}", file=sys.stderr)

@@ -29,7 +29,7 @@ from ..search.planner import ALGORITHMS
 
 __all__ = [
     "OBSTACLE_FORMATS", "whole_number", "finite_number", "cli_message", "load_object",
-    "algorithms", "safe_name", "parse_obstacle", "build_scene",
+    "algorithms", "safe_name", "parse_obstacle", "build_scene", "source_option",
 ]
 
 #: ``kind -> (primitive type, the numbers after the centre, help text)``.
@@ -45,9 +45,12 @@ _OPTION_OF_FIELD = {
     "iterations": "--iterations", "friction": "--friction", "algorithm": "--algorithm",
     "clearance": "--clearance", "approach_distance": "--approach-distance", "max_grasps": "--grasps",
     "simulate": "--simulate", "support_planes": "--table", "obstacle_poses": "--obstacle",
-    "obstacles": "--obstacle",
+    "obstacles": "--obstacle", "hand description": "--hand",
 }
-_INDEXED = re.compile(r"^(support_planes|obstacles|obstacle_poses)\[(\d+)\]$")
+#: Fields naming the object itself, whichever option gave it (``--object`` or ``--mesh``).
+_OBJECT_FIELDS = ("object", "object_pose")
+#: A scene item, as a message's field or inside its text (``... penetrates obstacles[1] ...``).
+_REFERENCE = re.compile(r"\b(support_planes|obstacles|obstacle_poses)\[(\d+)\]")
 
 
 def whole_number(text: str) -> int:
@@ -69,22 +72,45 @@ def finite_number(text: str) -> float:
     return value
 
 
-def cli_message(exc: BaseException) -> str:
-    """The first line of an error, its leading request field renamed to the option
-    (``clearance: ...`` -> ``--clearance: ...``, ``obstacles[1]: ...`` -> ``--obstacle 2: ...``)."""
+def _option_label(kind: str, index: str) -> str:
+    """``obstacles``, ``"1"`` -> ``--obstacle 2`` (1-based, as given); planes -> ``--table``."""
+    option = _OPTION_OF_FIELD[kind]
+    return option if option == "--table" else f"{option} {int(index) + 1}"
+
+
+def cli_message(exc: BaseException, object_option: str = "--object") -> str:
+    """The first line of an error with the request fields renamed to the options.
+
+    ``clearance: ...`` -> ``--clearance: ...``; ``obstacles[1]: ...`` -> ``--obstacle 2: ...``;
+    a placement error of the object (``object_pose: the object penetrates obstacles[1] ...``)
+    is put on the scene item it names (``--obstacle 2: the object penetrates this obstacle
+    ...``); other errors about the object name ``object_option`` (``--object`` or ``--mesh``).
+    """
     text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     head, sep, rest = text.partition(":")
     if not sep:
         return text
-    head = head.strip()
-    indexed = _INDEXED.match(head)
+    field = head.strip()  # grasp_apso errors start with their field
+    if field in _OBJECT_FIELDS:
+        ref = _REFERENCE.search(rest)
+        if ref is not None:  # the object against one scene item: name that item's option
+            this = "the table" if ref.group(1) == "support_planes" else "this obstacle"
+            rest = rest[:ref.start()] + this + rest[ref.end():]
+            field = f"{ref.group(1)}[{ref.group(2)}]"
+        else:
+            return object_option + ":" + _REFERENCE.sub(lambda m: _option_label(*m.groups()), rest)
+    rest = _REFERENCE.sub(lambda m: _option_label(*m.groups()), rest)
+    indexed = _REFERENCE.fullmatch(field)
     if indexed:
-        option = _OPTION_OF_FIELD[indexed.group(1)]
-        label = option if option == "--table" else f"{option} {int(indexed.group(2)) + 1}"
-        return label + ":" + rest
-    if head in _OPTION_OF_FIELD:
-        return _OPTION_OF_FIELD[head] + ":" + rest
-    return text
+        return _option_label(*indexed.groups()) + ":" + rest
+    if field in _OPTION_OF_FIELD:
+        return _OPTION_OF_FIELD[field] + ":" + rest
+    return head + ":" + rest
+
+
+def source_option(args: argparse.Namespace | None) -> str:
+    """The option that gave the object: ``--mesh`` or ``--object`` (also the default sphere)."""
+    return "--mesh" if args is not None and getattr(args, "mesh", None) is not None else "--object"
 
 
 def load_object(args: argparse.Namespace):
