@@ -313,3 +313,44 @@ def test_the_first_request_after_ready_is_answered_at_once(client_context):
     finally:
         status = _stop(node_proc, signal.SIGINT)
     assert status == 0, node_out.text()
+
+
+def test_simulate_on_a_new_non_convex_mesh_is_answered_within_the_time_bound(client_context, tmp_path):
+    """``simulate`` with a mesh the node has never seen (issue 19.4): its convex
+    decomposition cannot end within ``plan_timeout``, yet the reply comes within it and
+    carries the verified candidates, unsimulated (``sim_result`` -1), saying why."""
+    import time
+
+    import numpy as np
+    import trimesh
+
+    rng = np.random.default_rng(190404)
+    torus = trimesh.creation.torus(major_radius=0.03, minor_radius=0.012, major_sections=48, minor_sections=24)
+    torus.vertices += rng.normal(0.0, 2e-4, torus.vertices.shape)  # a mesh hash no cache holds
+    mesh_dir = tmp_path / 'meshes'
+    mesh_dir.mkdir()
+    torus.export(str(mesh_dir / 'torus.stl'))
+    timeout = 5.0
+    node_proc = _start_node('-p', f'plan_timeout:={timeout}', '-p', f'allowed_mesh_dir:={mesh_dir}',
+                            '-p', f'cache_directory:={tmp_path / "cache"}')
+    node_out = LineReader(node_proc.stdout)
+    try:
+        client = client_context.create_client(PlanGrasp, SERVICE)
+        assert client.wait_for_service(timeout_sec=DISCOVERY_TIMEOUT), node_out.text()
+        assert node_out.wait(lambda lines: any('ready' in l for l in lines), 120.0), node_out.text()
+        req = _request('', mesh_uri=str(mesh_dir / 'torus.stl'), particles=40, iterations=20, seed=5,
+                       simulate=True, max_grasps=3)
+        t0 = time.monotonic()
+        res = wait_future(client.call_async(req), 60.0)
+        seconds = time.monotonic() - t0
+    finally:
+        status = _stop(node_proc, signal.SIGINT)
+    print(res.success, res.message, seconds)
+    assert seconds < timeout + 0.5, (seconds, res.message)
+    assert res.success, res.message
+    assert len(res.grasps) >= 1, res.message
+    results = [g.sim_result for g in res.grasps]
+    # the decomposition or the simulation ran out of time: what was not simulated says so
+    assert -1 in results, (results, res.message)
+    assert 'not simulated' in res.message or 'simulation stopped' in res.message, res.message
+    assert status == 0, node_out.text()

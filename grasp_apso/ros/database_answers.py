@@ -28,7 +28,7 @@ from ..errors import DatabaseError
 from ..model.hand import JOINT_NAMES, HandModel
 from ..search.result import SIM_NOT_RUN, Contact, GraspCandidate
 
-__all__ = ["FIELD", "StoredGrasps", "lookup", "object_bvh", "open_database"]
+__all__ = ["FIELD", "StoredGrasps", "lookup", "open_database"]
 
 #: The node parameter (named in every error).
 FIELD = "grasp_database"
@@ -117,14 +117,6 @@ def open_database(path: str, hand: HandModel) -> Any:
         shown = os.path.basename(os.path.normpath(path)) or path
         raise DatabaseError(f"{FIELD}: cannot read the grasp database {shown}: {type(exc).__name__}: {exc}",
                             FIELD) from None
-
-
-def object_bvh(obj: Any) -> Any:
-    """The object's mesh as an ``fcl.BVHModel`` (object frame), for the approach check
-    (built once per mesh: :func:`grasp_apso.geometry.collision.object_bvh`)."""
-    from ..geometry.collision import object_bvh as cached_bvh
-
-    return cached_bvh(obj)
 
 
 def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: Any, options: Any,

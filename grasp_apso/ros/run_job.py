@@ -14,6 +14,7 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 from ..cache import BoundedCache
+from ..geometry.collision import object_bvh
 from ..model.object_source import resolve_object
 from ..model.objects import GraspObject
 from ..search.planner import plan
@@ -56,7 +57,7 @@ def run_job(job: Job, *, objects: BoundedCache[GraspObject], database: Any, hook
         job.set_stage(Stage.DATABASE_LOOKUP)
         stored, note = database_answers.lookup(
             database, obj, req.hand, req.pose, req.scene, opts, preparation_time=time.perf_counter() - t0,
-            obj_bvh=database_answers.object_bvh(obj) if req.scene is not None else None)
+            obj_bvh=object_bvh(obj) if req.scene is not None else None)
         job.database_note = note
         if stored is not None:
             hooks.on_result(job, stored)

@@ -36,7 +36,7 @@ from typing import Any, Callable
 from rclpy.executors import Executor
 from rclpy.task import Future
 
-from ..cache import BoundedCache
+from ..cache import BoundedCache, set_cache_root
 from ..errors import GraspApsoError
 from ..model.objects import GraspObject
 from ..search.planner import warm_up
@@ -75,8 +75,10 @@ class Worker:
     """Runs jobs on ``workers`` threads with ``queue_length`` waiting places; answers stored
     objects from ``database`` (a :class:`~grasp_apso.database.lookup.GraspDatabase`) when given."""
 
-    def __init__(self, hooks: Hooks, workers: int = 1, queue_length: int = 4, database: Any = None) -> None:
+    def __init__(self, hooks: Hooks, workers: int = 1, queue_length: int = 4, database: Any = None,
+                 cache_directory: str = "") -> None:
         self._hooks = hooks
+        set_cache_root(cache_directory)  # the disk caches (convex decompositions) of this node
         self.database = database
         self.admission = Admission(workers, queue_length)
         self.objects: BoundedCache[GraspObject] = BoundedCache(OBJECT_CACHE_ENTRIES, OBJECT_CACHE_BYTES)
@@ -260,3 +262,6 @@ class Worker:
         for job in self.admission.select(lambda j: not j.started):
             self.cancel(job, "node shutting down")
         self._pool.shutdown(wait=wait, cancel_futures=True)
+        convex = sys.modules.get("grasp_apso.simulation.convex")  # loaded only by a simulate request
+        if convex is not None:
+            convex.cancel_background()
