@@ -4,8 +4,8 @@
 ``geom`` and what the sphere cover (:mod:`.spheres`) and the pads (:mod:`.pads`) work on.
 
 - ``signed_distance`` is exact: analytic for the primitives; for a mesh, the exact
-  distance to its triangles (:mod:`.mesh_distance`) with the sign from the mesh's
-  ray-parity inside test. A mesh that is not watertight has no inside, so its convex
+  distance to its triangles with the sign from the closest feature's pseudo-normal
+  (:mod:`.mesh_distance`). A mesh that is not watertight has no inside, so its convex
   hull stands for it (``source`` says so): the hull is what the fingers cannot enter.
 - ``to_trimesh`` tessellates the primitives finely (curved surfaces at most 0.12 % of
   the radius inside the true surface, watertight), in the link frame.
@@ -110,7 +110,9 @@ class LinkGeometry:
         if not np.all(np.isfinite(mesh.vertices)):
             raise HandDescriptionError(f"collision: {where}: the mesh has non-finite vertices", field="collision")
         mesh = mesh.copy()
-        if not mesh.is_watertight:
+        mesh.merge_vertices()
+        mesh.update_faces(mesh.nondegenerate_faces())
+        if not mesh.is_watertight or not mesh.is_winding_consistent:
             try:
                 hull = mesh.convex_hull
             except Exception as exc:  # qhull refuses flat or degenerate point sets
@@ -187,11 +189,7 @@ class LinkGeometry:
             radius, half = self.size
             axial = np.clip(p[:, 2], -half, half)
             return np.linalg.norm(p - np.outer(axial, [0.0, 0.0, 1.0]), axis=1) - radius
-        distance = self._mesh_distance(p)
-        if len(p) == 0:
-            return distance
-        inside = self.mesh.contains(p)
-        return np.where(inside, -distance, distance)
+        return self._mesh_distance(p)
 
 
 def _capsule_mesh(radius: float, half_length: float) -> trimesh.Trimesh:

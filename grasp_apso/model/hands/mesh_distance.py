@@ -6,8 +6,10 @@ the exact distance to the triangles of its nearest centroids (a k-d tree) as an 
 bound, then visits every triangle but measures only those whose bounding sphere (centroid,
 farthest vertex) comes closer than the best distance so far: exact, and about 20x faster.
 
-The sign (inside or outside) is the caller's business (:mod:`.geometry` uses the mesh's
-ray-parity ``contains`` on a watertight mesh).
+The sign comes from the angle-weighted pseudo-normal of the closest feature (face, edge
+or vertex): exact for a closed, consistently oriented mesh, robust next to edges (where
+ray parity miscounts), and free (no ray tracer: trimesh's own takes ~2 s for 5,000
+points on 5,000 faces without embree).
 """
 
 from __future__ import annotations
@@ -26,9 +28,14 @@ _jit = numba.njit(cache=True, nogil=True)
 _SEED_TRIANGLES = 4
 
 
+# Regions of a triangle a, b, c where the closest point lies (index into the pseudo-normals).
+_FACE, _VA, _VB, _VC, _EAB, _EAC, _EBC = 0, 1, 2, 3, 4, 5, 6
+
+
 @_jit
 def _point_triangle_sq(px, py, pz, tri):
-    """Squared distance from a point to one triangle ``tri`` (3, 3) (Ericson's regions)."""
+    """(squared distance, region, offset p - q) from a point to one triangle ``tri`` (3, 3),
+    q its closest point (Ericson's Voronoi regions)."""
     ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
     abx, aby, abz = tri[1, 0] - ax, tri[1, 1] - ay, tri[1, 2] - az
     acx, acy, acz = tri[2, 0] - ax, tri[2, 1] - ay, tri[2, 2] - az
@@ -36,68 +43,96 @@ def _point_triangle_sq(px, py, pz, tri):
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
-        return apx * apx + apy * apy + apz * apz
+        return apx * apx + apy * apy + apz * apz, _VA, apx, apy, apz
     bpx, bpy, bpz = px - tri[1, 0], py - tri[1, 1], pz - tri[1, 2]
     d3 = abx * bpx + aby * bpy + abz * bpz
     d4 = acx * bpx + acy * bpy + acz * bpz
     if d3 >= 0.0 and d4 <= d3:
-        return bpx * bpx + bpy * bpy + bpz * bpz
+        return bpx * bpx + bpy * bpy + bpz * bpz, _VB, bpx, bpy, bpz
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
         qx, qy, qz = apx - v * abx, apy - v * aby, apz - v * abz
-        return qx * qx + qy * qy + qz * qz
+        return qx * qx + qy * qy + qz * qz, _EAB, qx, qy, qz
     cpx, cpy, cpz = px - tri[2, 0], py - tri[2, 1], pz - tri[2, 2]
     d5 = abx * cpx + aby * cpy + abz * cpz
     d6 = acx * cpx + acy * cpy + acz * cpz
     if d6 >= 0.0 and d5 <= d6:
-        return cpx * cpx + cpy * cpy + cpz * cpz
+        return cpx * cpx + cpy * cpy + cpz * cpz, _VC, cpx, cpy, cpz
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
         qx, qy, qz = apx - w * acx, apy - w * acy, apz - w * acz
-        return qx * qx + qy * qy + qz * qz
+        return qx * qx + qy * qy + qz * qz, _EAC, qx, qy, qz
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         bcx, bcy, bcz = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
         qx, qy, qz = bpx - w * bcx, bpy - w * bcy, bpz - w * bcz
-        return qx * qx + qy * qy + qz * qz
+        return qx * qx + qy * qy + qz * qz, _EBC, qx, qy, qz
     denom = 1.0 / (va + vb + vc)
     v = vb * denom
     w = vc * denom
     qx = apx - abx * v - acx * w
     qy = apy - aby * v - acy * w
     qz = apz - abz * v - acz * w
-    return qx * qx + qy * qy + qz * qz
+    return qx * qx + qy * qy + qz * qz, _FACE, qx, qy, qz
 
 
 @_jit
-def _distances(points, triangles, centers, reach, seeds, out):
-    """out[i] = min over triangles of |points[i] - triangle| (m); seeds (N, k) first."""
+def _distances(points, triangles, centers, reach, seeds, pseudo, out):
+    """out[i] = signed distance from points[i] to the mesh (m, > 0 outside); seeds (N, k)
+    are measured first. The sign: the offset from the closest point against the
+    angle-weighted pseudo-normal of the closest feature (Baerentzen and Aanaes 2005),
+    exact for a closed, consistently oriented mesh."""
     for i in range(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         best = np.inf
+        best_t, best_r = 0, 0
+        ox, oy, oz = 0.0, 0.0, 0.0
         for s in range(seeds.shape[1]):
-            d = _point_triangle_sq(px, py, pz, triangles[seeds[i, s]])
+            t = seeds[i, s]
+            d, r, dx, dy, dz = _point_triangle_sq(px, py, pz, triangles[t])
             if d < best:
-                best = d
+                best, best_t, best_r, ox, oy, oz = d, t, r, dx, dy, dz
         best_d = math.sqrt(best)
         for t in range(triangles.shape[0]):
-            dx, dy, dz = px - centers[t, 0], py - centers[t, 1], pz - centers[t, 2]
-            lower = math.sqrt(dx * dx + dy * dy + dz * dz) - reach[t]
+            cx, cy, cz = px - centers[t, 0], py - centers[t, 1], pz - centers[t, 2]
+            lower = math.sqrt(cx * cx + cy * cy + cz * cz) - reach[t]
             if lower < best_d:
-                d = _point_triangle_sq(px, py, pz, triangles[t])
+                d, r, dx, dy, dz = _point_triangle_sq(px, py, pz, triangles[t])
                 if d < best:
-                    best = d
+                    best, best_t, best_r, ox, oy, oz = d, t, r, dx, dy, dz
                     best_d = math.sqrt(best)
-        out[i] = best_d
+        n = pseudo[best_t, best_r]
+        out[i] = best_d if ox * n[0] + oy * n[1] + oz * n[2] >= 0.0 else -best_d
+
+
+def _pseudo_normals(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F, 7, 3) per triangle: its face normal, its vertices' angle-weighted normals (a, b,
+    c) and its edges' normals (ab, ac, bc: the sum of the two faces' normals)."""
+    faces = np.asarray(mesh.faces)
+    normals = np.asarray(mesh.face_normals, dtype=np.float64)
+    angles = np.nan_to_num(np.asarray(mesh.face_angles, dtype=np.float64))
+    vertex = np.zeros((len(mesh.vertices), 3))
+    for k in range(3):
+        np.add.at(vertex, faces[:, k], angles[:, k, None] * normals)
+    pairs = np.sort(np.stack([faces[:, [0, 1]], faces[:, [0, 2]], faces[:, [1, 2]]], axis=1).reshape(-1, 2), axis=1)
+    _, edge_id = np.unique(pairs, axis=0, return_inverse=True)
+    edge_id = edge_id.ravel()
+    edge = np.zeros((edge_id.max() + 1, 3))
+    np.add.at(edge, edge_id, np.repeat(normals, 3, axis=0))
+    out = np.empty((len(faces), 7, 3))
+    out[:, 0] = normals
+    out[:, 1:4] = vertex[faces]
+    out[:, 4:7] = edge[edge_id].reshape(-1, 3, 3)
+    return np.ascontiguousarray(out)
 
 
 class MeshDistance:
-    """Exact unsigned point-to-mesh distance for one mesh (built once, reused).
+    """Exact signed point-to-mesh distance for one mesh (built once, reused).
 
-    mesh : trimesh.Trimesh with at least one face.
+    mesh : a watertight, consistently oriented trimesh.Trimesh (outward normals).
     """
 
     def __init__(self, mesh: trimesh.Trimesh):
@@ -105,13 +140,14 @@ class MeshDistance:
         self._centers = self._triangles.mean(axis=1)
         self._reach = np.linalg.norm(self._triangles - self._centers[:, None, :], axis=2).max(axis=1)
         self._tree = cKDTree(self._centers)
+        self._pseudo = _pseudo_normals(mesh)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        """points : (N, 3) float, m -> (N,) float, m (>= 0)."""
+        """points : (N, 3) float, m -> (N,) float, m (> 0 outside)."""
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         k = min(_SEED_TRIANGLES, len(self._centers))
         _, seeds = self._tree.query(pts, k=k)
         seeds = np.ascontiguousarray(np.asarray(seeds, dtype=np.int64).reshape(len(pts), k))
         out = np.empty(len(pts))
-        _distances(pts, self._triangles, self._centers, self._reach, seeds, out)
+        _distances(pts, self._triangles, self._centers, self._reach, seeds, self._pseudo, out)
         return out
