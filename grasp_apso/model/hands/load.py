@@ -52,7 +52,7 @@ def _read(path: Path, limit: int) -> bytes:
 
 
 def load_hand(path: str | Path | None = None, config: str | Path | dict | None = None,
-              spheres: bool = True) -> HandModel:
+              spheres: bool = True, max_file_bytes: int | None = None) -> HandModel:
     """Load a hand and derive its grasp semantics.
 
     Parameters
@@ -60,6 +60,8 @@ def load_hand(path: str | Path | None = None, config: str | Path | dict | None =
     path : .urdf, .xml (MJCF) or .yaml file; None = the paper's hand.
     config : override config (YAML path or dict, see :mod:`.config`), optional.
     spheres : cover every link with spheres (False: ``spheres`` is empty; quicker).
+    max_file_bytes : size limit of the file and each collision mesh (default: the
+        tunable ``max_hand_file_bytes``).
 
     Raises
     ------
@@ -73,11 +75,11 @@ def load_hand(path: str | Path | None = None, config: str | Path | dict | None =
     if kind is None:
         raise HandDescriptionError(f"hand_description: {path.name} is not a URDF (.urdf), MJCF (.xml) or "
                                    "YAML (.yaml) file", field="hand_description")
-    limit = int(tunables.default("max_hand_file_bytes"))
+    limit = int(tunables.default("max_hand_file_bytes") if max_file_bytes is None else max_file_bytes)
     content = _read(path, limit)
     cfg = read_config(config)
     source_hash = hashlib.sha256(content + b"\0" + cfg.canonical.encode()).hexdigest()
-    key = (source_hash, str(path.resolve().parent), bool(spheres))
+    key = (source_hash, str(path.resolve().parent), bool(spheres), limit)
     return _CACHE.get_or_create(key, lambda: _build(path, kind, content, cfg, source_hash, limit, spheres))
 
 

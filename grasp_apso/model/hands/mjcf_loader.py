@@ -123,7 +123,7 @@ def read_mjcf(path: Path) -> RawHand:
     OBJ, JNT = mujoco.mjtObj, mujoco.mjtJoint
     tops = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not tops:
-        raise HandDescriptionError(f"hand_description: {path.name} has no bodies", field="hand_description")
+        raise HandDescriptionError(f"hand_description: {path.name} is not an MJCF hand (no bodies)", field="hand_description")
     subtrees = _subtree_sizes(model, tops)
     top = max(tops, key=lambda b: subtrees[b][1])
     members = subtrees[top][0]
