@@ -43,10 +43,10 @@ MAX_STRAY = 0.002
 #: Spheres per link at most (the compiled search's budget); beyond it the cover stops and
 #: reports the fraction left uncovered.
 MAX_SPHERES = 256
-#: Radius kept below depth + tolerance (m): the checks measure the stray against the
-#: tessellated primitives (up to 0.12 % of the radius inside the true surface) and
-#: trimesh's approximate closest points.
-_STRAY_MARGIN = 5e-5
+#: Radius kept below depth + tolerance (m): checks measure the stray against tessellated
+#: primitives (up to 0.12 % of the radius inside the true surface) with trimesh's
+#: approximate closest points (up to 0.08 mm too far on a capsule).
+_STRAY_MARGIN = 1e-4
 #: Surface samples for the cover: spacing as a fraction of the tolerance, and at most so many.
 _SPACING = 0.5
 _MAX_SAMPLES = 5000
