@@ -5,7 +5,8 @@
 
 - ``signed_distance`` is exact: analytic for the primitives; for a mesh, the exact
   distance to its triangles with the sign from the closest feature's pseudo-normal
-  (:mod:`.mesh_distance`). A mesh that is not watertight has no inside, so its convex
+  (:mod:`.mesh_distance`); a mesh of several closed shells is their union (the least
+  signed distance over them), as the shells of CAD exports overlap. A mesh that is not watertight has no inside, so its convex
   hull stands for it (``source`` says so): the hull is what the fingers cannot enter.
 - ``to_trimesh`` tessellates the primitives finely (curved surfaces at most 0.12 % of
   the radius inside the true surface, watertight), in the link frame.
@@ -35,6 +36,8 @@ KINDS: dict[str, int] = {"box": 3, "sphere": 1, "cylinder": 2, "capsule": 2, "me
 _SECTIONS = 96
 _CAPSULE_LATITUDES = 16
 _ICO_LEVEL = 4
+#: Components of a mesh with less volume than this are flat sheets, not solids (m^3).
+_FLAT_VOLUME = 1e-12
 #: Tolerance of the rigid-transform check on ``origin``.
 _RIGID_TOL = 1e-6
 
@@ -152,8 +155,14 @@ class LinkGeometry:
         return mesh
 
     @cached_property
-    def _mesh_distance(self) -> MeshDistance:
-        return MeshDistance(self.mesh)
+    def _mesh_distance(self) -> tuple[MeshDistance, ...]:
+        """One exact distance per closed component (a collision mesh is often several
+        overlapping shells: the solid is their union; flat shells have no inside)."""
+        parts = [part for part in self.mesh.split(only_watertight=False) if abs(part.volume) > _FLAT_VOLUME]
+        for part in parts:
+            if part.volume < 0:  # an inner shell facing inward: its solid counts too
+                part.invert()
+        return tuple(MeshDistance(part) for part in parts) or (MeshDistance(self.mesh),)
 
     def to_trimesh(self) -> trimesh.Trimesh:
         """The surface in the LINK frame (a fresh copy: the caller may change it)."""
@@ -189,7 +198,11 @@ class LinkGeometry:
             radius, half = self.size
             axial = np.clip(p[:, 2], -half, half)
             return np.linalg.norm(p - np.outer(axial, [0.0, 0.0, 1.0]), axis=1) - radius
-        return self._mesh_distance(p)
+        parts = self._mesh_distance
+        out = parts[0](p)
+        for part in parts[1:]:
+            np.minimum(out, part(p), out=out)
+        return out
 
 
 def _capsule_mesh(radius: float, half_length: float) -> trimesh.Trimesh:
