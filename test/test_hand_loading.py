@@ -176,6 +176,10 @@ def test_paper_hand_matches_the_planners_dh_model(hands):
     for f, finger in enumerate(FINGER_NAMES):
         np.testing.assert_allclose(poses[:, general.link_index(f"{finger}_tip"), :3, 3], tips[:, f], atol=1e-9)
     assert general.palm_normal == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)  # the YAML's +z
+    # The YAML: positive flexion curls toward +z; the pivot is abduction (pre-shape).
+    for finger in general.fingers:
+        kinds = [j.split("_", 1)[1] for j in finger.joints]
+        assert dict(zip(kinds, finger.closing)) == {"pivot": 0, "proximal": 1, "distal": 1}
 
 
 def test_loaded_once_and_cached_by_content(files, tmp_path):

@@ -60,11 +60,15 @@ def test_every_pad_is_on_the_palmar_surface_of_the_last_link(hands, name):
                     for g in hand.collision[f.pad_link])
         assert depth <= 1e-3, (f.name, depth)
         assert 0.001 <= f.pad_radius <= 0.02
-    # Straight fingers: the pad is on the palm's side of the fingertip.
+    # Straight fingers: the pad is on the palm's side of the fingertip link (in the upper
+    # part of the link's extent along the palm normal).
+    poses = hand.link_transforms(hand.open_configuration())
     for f in hand.fingers:
         if not f.is_thumb:
-            pad, centre = _pads(hand, hand.open_configuration())[f.name]
-            assert np.dot(pad - centre, hand.palm_normal) > 0.3 * np.linalg.norm(pad - centre), f.name
+            T = poses[f.pad_link]
+            heights = (_link_mesh(hand, f.pad_link).vertices @ T[:3, :3].T + T[:3, 3]) @ hand.palm_normal
+            pad = (T[:3, :3] @ f.pad_center + T[:3, 3]) @ hand.palm_normal
+            assert (pad - heights.min()) / np.ptp(heights) > 0.7, f.name
     # Closing: the thumb's pad faces the other fingers' pads.
     pads = _pads(hand, hand.closed_configuration(0.3))
     pad, centre = pads[hand.thumb.name]

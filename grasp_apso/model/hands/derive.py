@@ -15,7 +15,8 @@
   wherever that is clear.
 - Thumb: the finger whose closing motion opposes the others' most.
 - Palm normal: from the root's collision geometry toward the centre of the fingertips of
-  the closed hand (fallback: the fingers' mean closing direction).
+  the closed hand, made perpendicular to the direction the straight fingers extend in when
+  most of it remains (fallback: the fingers' mean closing direction).
 - Pads: :func:`.pads.find_pad` on the tip link, with the palmar direction (the tip's
   closing motion) and the distal direction in that link's frame.
 """
@@ -291,4 +292,12 @@ def _palm_normal(hand, info, tip_points, q0, thumb_f) -> np.ndarray:
     inside = min(float(g.signed_distance(centre[None])[0]) for g in geoms) < 0
     if inside or np.linalg.norm(direction) < 1e-6:
         return fallback
-    return _unit(direction)
+    normal = _unit(direction)
+    # Fingers that extend along the palm (most hands): the closed fingertips sit beyond the
+    # palm's edge, which tilts the direction toward the fingers; the palm's face is
+    # perpendicular to them. (Fingers that extend along the normal, as a Barrett hand's,
+    # leave little of it and keep it.)
+    straight = tip_points(q0[None])[0]
+    along = _unit(np.mean([straight[f] for f in range(len(info)) if f != thumb_f], axis=0))
+    across = normal - float(np.dot(normal, along)) * along
+    return _unit(across) if np.linalg.norm(across) > 0.5 else normal
