@@ -139,6 +139,29 @@ def test_link_transforms_match_yourdfpy(hands, files, name):
                                        err_msg=link)
 
 
+def test_mjcf_meshes_sit_where_the_file_puts_them(hands, files):
+    """MuJoCo recentres meshes when it compiles them: the geometry read back must still be
+    the STL file in the body frame (this geom has no pos/quat of its own)."""
+    import trimesh
+
+    ours = hands["inspire"].collision["r_index_distal"][0].to_trimesh()
+    stl = trimesh.load(files["inspire"].parent / "meshes" / "inspire_hands" / "rh_Link16.STL")
+    np.testing.assert_allclose(ours.bounds, stl.bounds, atol=1e-6)
+
+
+def test_package_uris_resolve_in_a_copied_description(files, tmp_path):
+    import shutil
+
+    # Copied out of its package folder (not called allegro_like), the URDF in urdf/ beside meshes/.
+    shutil.copytree(Path(files["allegro"]).parent / "meshes", tmp_path / "copy" / "meshes")
+    (tmp_path / "copy" / "urdf").mkdir()
+    text = Path(files["allegro"]).read_text().replace('filename="meshes/', 'filename="package://allegro_like/meshes/')
+    (tmp_path / "copy" / "urdf" / "hand.urdf").write_text(text)
+    hand = load_hand(tmp_path / "copy" / "urdf" / "hand.urdf", spheres=False)
+    assert len(hand.fingers) == 4
+    assert any(g.kind == "mesh" for g in hand.collision["ring_distal"])
+
+
 def test_batch_equals_single(hands):
     hand = hands["shadow"]
     q = np.random.default_rng(3).uniform(hand.lower, hand.upper, size=(4, hand.n_joints))

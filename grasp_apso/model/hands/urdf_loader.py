@@ -4,8 +4,8 @@ Joints: revolute, continuous, prismatic, fixed (floating and planar refused, nam
 joint); ``mimic`` elements become couplings. Collision geometry: box, cylinder, sphere,
 mesh (capsule, a common extension, too). Mesh paths resolve relative to the URDF file;
 ``package://NAME/rest`` resolves to ``rest`` under the nearest ancestor folder called
-NAME, or else under the URDF's folder (the layouts of a ROS package and of a copied
-description). Only collision meshes are read: a missing one is an error naming it.
+NAME, or under a folder NAME beside an ancestor, or else under the URDF's folder or one of
+its three parents (the layouts of a ROS package and of a copied description). Only collision meshes are read: a missing one is an error naming it.
 """
 
 from __future__ import annotations
@@ -36,6 +36,10 @@ def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
         for folder in (base_dir, *base_dir.parents):
             if (folder / package / rest).exists():
                 return folder / package / rest
+        # A description copied out of its package: urdf/ and meshes/ side by side.
+        for folder in (base_dir, *list(base_dir.parents)[:3]):
+            if (folder / rest).exists():
+                return folder / rest
         return base_dir / rest
     path = Path(uri)
     return path if path.is_absolute() else base_dir / path
