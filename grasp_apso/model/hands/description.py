@@ -197,9 +197,9 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
         k = act_index[leader]
         bounds = sorted(((fj.lower - off) / mult, (fj.upper - off) / mult))
         lo, hi = max(lower_a[k], bounds[0]), min(upper_a[k], bounds[1])
-        if lo >= hi:
-            raise HandDescriptionError(f"joint {leader!r}: its follower {follower!r} cannot stay in its limits",
-                                       field=leader)
+        if lo >= hi:  # a coupling that holds the follower outside its limits: said, not fixed
+            raw.notes.append(f"joint {follower}: outside its limits for every value of {leader}")
+            continue
         if lo > lower_a[k] + 1e-9 or hi < upper_a[k] - 1e-9:
             raw.notes.append(f"joint {leader}: range narrowed to [{lo:.4g}, {hi:.4g}] so that "
                              f"{follower} stays within its limits")

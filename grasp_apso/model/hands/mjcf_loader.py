@@ -204,7 +204,9 @@ def _equalities(mujoco, model, raw, joint_names, qpos0, depth) -> None:
                                           qpos0[follower] + float(poly[0]) - mult * qpos0[leader],
                                           f"equality {ename}"))
         elif model.eq_type[e] == EQ.mjEQ_TENDON and model.eq_obj2id[e] < 0:
-            _tendon_coupling(mujoco, model, raw, model.eq_obj1id[e], float(poly[0]), f"equality {ename}",
+            # L - L0 = a0: the tendon keeps its length at qpos0 (plus a0).
+            t = model.eq_obj1id[e]
+            _tendon_coupling(mujoco, model, raw, t, float(model.tendon_length0[t] + poly[0]), f"equality {ename}",
                              joint_names, None, depth)
 
 
@@ -242,11 +244,17 @@ def _tendon_coupling(mujoco, model, raw, t, length, source, joint_names, actuate
     n1, n2 = joint_names.get(j1), joint_names.get(j2)
     if n1 is None or n2 is None or c1 == 0 or c2 == 0:
         return
-    if any(c.follower in (n1, n2) for c in raw.couplings):
+    following = {c.follower for c in raw.couplings}
+    if n1 in following and n2 in following:
         return
-    # The follower: the joint no actuator drives, else the one farther down the tree.
-    follower_first = (n1 not in actuated) if actuated and ((n1 in actuated) != (n2 in actuated)) \
-        else depth.get(n1, 0) > depth.get(n2, 0)
+    # The follower: not already a follower; else the joint no actuator drives; else the
+    # one farther down the tree.
+    if (n1 in following) != (n2 in following):
+        follower_first = n2 in following
+    elif actuated and (n1 in actuated) != (n2 in actuated):
+        follower_first = n1 not in actuated
+    else:
+        follower_first = depth.get(n1, 0) > depth.get(n2, 0)
     (fj, fc), (lj, lc) = ((n1, c1), (n2, c2)) if follower_first else ((n2, c2), (n1, c1))
     # fc * qf + lc * ql = length  ->  qf = -lc/fc * ql + length/fc
     raw.couplings.append(Coupling(fj, lj, -lc / fc, length / fc, source))
