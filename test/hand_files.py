@@ -32,6 +32,9 @@ HANDS = {
     "adroit": ("gymnasium_robotics", "envs/assets/adroit_hand/adroit_relocate.xml"),
     "inspire": ("robosuite", "models/assets/grippers/inspire_right_hand.xml"),
     "fourier": ("robosuite", "models/assets/grippers/fourier_right_hand.xml"),
+    # Three-finger grippers of the same wheel: tendon-equality couplings, one finger opposing two.
+    "robotiq_s": ("robosuite", "models/assets/grippers/robotiq_gripper_s.xml"),
+    "jaco": ("robosuite", "models/assets/grippers/jaco_three_finger_gripper.xml"),
 }
 
 

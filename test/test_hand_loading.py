@@ -23,13 +23,15 @@ from hand_files import installed_hand, write_allegro_like
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_URDF = ROOT / "urdf" / "apso_paper_hand.urdf"
-MJCF_HANDS = ("shadow", "adroit", "inspire", "fourier")
+MJCF_HANDS = ("shadow", "adroit", "inspire", "fourier", "robotiq_s", "jaco")
 #: name -> (finger count, thumb tip link, root link)
 EXPECTED = {
     "shadow": (5, "robot0:thdistal", "robot0:palm"),
     "adroit": (5, "thdistal", "palm"),
     "inspire": (5, "r_thumb_distal", "r_palm"),
     "fourier": (5, "R_thumb_distal_link", "r_palm"),
+    "robotiq_s": (3, "finger_middle_link_3", "palm"),
+    "jaco": (3, "thumb_distal", "right_gripper"),
     "allegro": (4, "thumb_tip", "palm"),
     "allegro_coupled": (4, "thumb_tip", "palm"),
     "paper_yaml": (5, "thumb_tip", "palm"),
