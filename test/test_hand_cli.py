@@ -23,7 +23,7 @@ def test_text_output_names_everything_a_user_checks(capsys):
     out = capsys.readouterr().out
     assert "root link (palm): robot0:palm" in out
     assert "held above the palm (fixed, not actuated for grasping): robot0:WRJ1=0, robot0:WRJ0=0" in out
-    assert "finger thbase (thumb): tip robot0:thdistal" in out
+    assert "finger th (thumb): tip robot0:thdistal" in out
     assert "robot0:FFJ3" in out and "pre-shape" in out and "+1 closes" in out
     assert "coupling: robot0:FFJ0 = 1.14184 * robot0:FFJ1" in out
     assert "collision spheres:" in out and "stray" in out

@@ -74,6 +74,17 @@ def test_the_real_fingers_are_found(hands, name):
     assert abs(np.linalg.norm(hand.palm_normal) - 1.0) < 1e-9
 
 
+@pytest.mark.parametrize("name, names", [
+    ("shadow", ["ff", "mf", "rf", "lf", "th"]),
+    ("fourier", ["thumb", "index", "middle", "ring", "pinky"]),
+    ("inspire", ["thumb", "index", "middle", "ring", "pinky"]),
+    ("robotiq_s", ["1", "2", "middle"]),
+    ("paper_urdf", ["little", "ring", "middle", "index", "thumb"]),
+])
+def test_fingers_are_named_from_their_links(hands, name, names):
+    assert [f.name for f in hands[name].fingers] == names
+
+
 def test_arm_and_wrist_joints_are_held(hands):
     assert set(hands["shadow"].held_joints) == {"robot0:WRJ1", "robot0:WRJ0"}
     assert {"ARTx", "ARRz", "WRJ0", "WRJ1"} <= set(hands["adroit"].held_joints)

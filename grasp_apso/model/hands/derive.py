@@ -99,20 +99,43 @@ def finger_tips(raw: RawHand, root: str) -> list[str]:
     return [link.name for link in raw.links if link.name in tips]
 
 
-def finger_label(first_links: list[str]) -> list[str]:
-    """Finger names from the first link of each chain: common prefix and suffix dropped."""
-    if len(first_links) < 2:
-        return list(first_links)
-    prefix = len(_common(first_links))
-    suffix = len(_common([s[::-1] for s in first_links]))
-    out = []
-    for s in first_links:
-        core = s[prefix:len(s) - suffix] if len(s) - suffix > prefix else s
-        out.append(core.strip("_:-. ") or s)
-    return out if len(set(out)) == len(out) else list(first_links)
+def finger_label(*candidates: list[str]) -> list[str]:
+    """Finger names from link names (one list per candidate source, e.g. the tip links and
+    the first links below the palm): per source, the tokens (split at ``_ : - .``) that
+    more than half of the names share and single-letter side marks (``l``, ``R``) are
+    dropped, then the characters all remaining names begin or end with; the source whose
+    names come out shortest (and distinct) wins. Shadow: ``robot0:ffdistal`` -> ``ff``."""
+    best = None
+    for names in candidates:
+        labels = _labels(names)
+        if labels is not None and (best is None or sum(map(len, labels)) < sum(map(len, best))):
+            best = labels
+    return best if best is not None else list(candidates[0])
+
+
+def _labels(names: list[str]) -> list[str] | None:
+    import re
+
+    tokens = [[t for t in re.split(r"[_:\-. ]+", n) if t] for n in names]
+    if len(names) >= 2:
+        counts: dict[str, int] = {}
+        for toks in tokens:
+            for t in set(toks):
+                counts[t] = counts.get(t, 0) + 1
+        keep = [[t for t in toks if counts[t] * 2 <= len(names) and not (len(t) == 1 and t.isalpha())]
+                for toks in tokens]
+        cores = ["_".join(k) for k in keep]
+        if all(cores):
+            prefix, suffix = len(_common(cores)), len(_common([c[::-1] for c in cores]))
+            trimmed = [c[prefix:len(c) - suffix].strip("_") for c in cores]
+            cores = trimmed if all(trimmed) else cores
+            if len(set(cores)) == len(cores):
+                return cores
+    return list(names) if len(set(names)) == len(names) else None
 
 
 def _common(items: list[str]) -> str:
+    """The longest prefix all ``items`` share."""
     first = items[0]
     n = 0
     while n < len(first) and all(len(s) > n and s[n] == first[n] for s in items):

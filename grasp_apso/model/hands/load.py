@@ -169,7 +169,7 @@ def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[
             while link.parent != root:
                 link = by_name[link.parent]
             firsts.append(link.name)
-        labels = finger_label(firsts) if len(set(firsts)) == len(firsts) else finger_label(tips)
+        labels = finger_label(tips, firsts)
     if len(tips) < 2:
         raise HandDescriptionError(f"hand_description: {len(tips)} finger(s) below {root}; a hand needs at least two",
                                    field="hand_description")
