@@ -32,7 +32,10 @@ HANDS = {
     "adroit": ("gymnasium_robotics", "envs/assets/adroit_hand/adroit_relocate.xml"),
     "inspire": ("robosuite", "models/assets/grippers/inspire_right_hand.xml"),
     "fourier": ("robosuite", "models/assets/grippers/fourier_right_hand.xml"),
-    # Three-finger grippers of the same wheel: tendon-equality couplings, one finger opposing two.
+    # Three-finger grippers of the same wheel: tendon-equality couplings, one finger opposing
+    # two. Compiled on their own their joint ranges are read in degrees (MJCF's default;
+    # robosuite compiles them inside a robot in radians), so they barely move: they test
+    # structure, couplings and kinematics, not the closing motion.
     "robotiq_s": ("robosuite", "models/assets/grippers/robotiq_gripper_s.xml"),
     "jaco": ("robosuite", "models/assets/grippers/jaco_three_finger_gripper.xml"),
 }
