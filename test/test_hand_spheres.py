@@ -6,10 +6,11 @@ Checked independently of the code under test: coverage on surface samples drawn 
 points on every sphere's surface; mesh distances against a brute-force loop over all
 triangles and trimesh's ray-parity ``contains``; pads against the analytic surface.
 
-Sphere counts with a 2 mm stray (seed 0, measured when written): box 20 x 27 x 54 mm 163,
-sphere r 10 mm 1, cylinder r 8 x 40 mm 38, capsule r 8 + 40 mm 7, L-shaped mesh 131.
-A box needs many: its edges and corners are covered only by spheres centred within a few
-millimetres of them.
+Sphere counts with a 2 mm stray (seed 0, measured when written): box 20 x 27 x 54 mm 178,
+sphere r 10 mm 1, cylinder r 8 x 40 mm 36, capsule r 8 + 40 mm 6, L-shaped mesh 130, a
+palm-sized box 100 x 90 x 20 mm more than 256. A box needs many: its edges and corners
+are covered only by spheres centred within a few millimetres of them. With capsules
+offered too: box 32, L-shaped mesh 35, palm-sized box 95, capsule 1.
 """
 
 from __future__ import annotations
@@ -124,6 +125,56 @@ def test_spheres_cover_the_surface_and_stray_at_most_2mm(shape, placement):
     assert abs(cover.max_stray - stray) < 3e-4
     # The spheres are not needlessly small: the stray allowance is used.
     assert stray > 0.5 * MAX_STRAY
+
+
+def _independent_capsule_stray(geoms: list[LinkGeometry], cover) -> float:
+    """Like _independent_stray, for capsules: spheres at 15 stations along each segment."""
+    rng = np.random.default_rng(12)
+    unit = _fibonacci(120) @ TF.random_rotation_matrix(rng.random(3))[:3, :3].T
+    t = np.linspace(0.0, 1.0, 15)
+    axis = cover.centers[:, None] + t[None, :, None] * (cover.ends - cover.centers)[:, None]
+    points = (axis[:, :, None] + cover.radii[:, None, None, None] * unit[None, None]).reshape(-1, 3)
+    inside_depth = np.max([trimesh.proximity.signed_distance(g.to_trimesh(), points) for g in geoms], axis=0)
+    return float(-inside_depth.min())
+
+
+def _capsule_gap(points: np.ndarray, cover) -> np.ndarray:
+    """Per point: min over capsules of (distance to the segment) - radius."""
+    a, b = cover.centers, cover.ends
+    ab = b - a
+    ap = points[:, None, :] - a[None]
+    t = np.clip((ap * ab[None]).sum(axis=2) / np.maximum((ab * ab).sum(axis=1), 1e-30)[None], 0.0, 1.0)
+    return (np.linalg.norm(ap - t[:, :, None] * ab[None], axis=2) - cover.radii[None]).min(axis=1)
+
+
+#: Most elements with capsules (measured when written: box 32, L mesh 35, capsule 1).
+MAX_CAPSULE_COUNT = {"box": 45, "l_mesh": 50, "capsule": 2, "capsule_and_box": 60}
+
+
+@pytest.mark.parametrize("shape", sorted(MAX_CAPSULE_COUNT))
+def test_capsules_cover_with_far_fewer_elements(shape):
+    geoms = _shapes(PLACEMENTS["placed"])[shape]
+    spheres = cover_link(geoms, rng=np.random.default_rng(0))
+    cover = cover_link(geoms, rng=np.random.default_rng(0), capsules=True)
+    assert cover.count <= MAX_CAPSULE_COUNT[shape]
+    assert cover.is_capsule.any()
+    if shape in ("box", "l_mesh"):
+        assert cover.count < 0.4 * spheres.count
+    surface = trimesh.util.concatenate([g.to_trimesh() for g in geoms])
+    samples, _ = trimesh.sample.sample_surface(surface, 20000, seed=6)
+    gap = np.concatenate([_capsule_gap(np.asarray(samples[i:i + 2000]), cover) for i in range(0, 20000, 2000)])
+    assert gap.max() <= 0.0, f"{(gap > 0).sum()} of 20000 surface samples outside every capsule"
+    assert _independent_capsule_stray(geoms, cover) <= MAX_STRAY
+    assert cover.uncovered == 0.0 and cover.max_stray <= MAX_STRAY
+
+
+def test_a_palm_sized_box_needs_capsules():
+    """100 x 90 x 20 mm: spheres alone run out at 256 with part of the surface uncovered."""
+    palm = [LinkGeometry("box", (0.05, 0.045, 0.01), PLACEMENTS["placed"])]
+    spheres = cover_link(palm)
+    assert spheres.count == 256 and spheres.uncovered > 0.01
+    cover = cover_link(palm, capsules=True)
+    assert cover.uncovered == 0.0 and cover.count <= 120
 
 
 def test_cover_is_deterministic_and_seeded():

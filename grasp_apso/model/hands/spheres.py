@@ -33,6 +33,7 @@ from scipy import sparse
 from scipy.spatial import cKDTree
 
 from ...errors import InputError
+from .capsules import capsule_candidates, principal_axes
 from .geometry import LinkGeometry
 
 __all__ = ["SphereCover", "cover_link", "union_signed_distance", "surface_samples", "MAX_STRAY",
@@ -67,6 +68,8 @@ _REPAIR_ROUNDS = 6
 _REPAIR_MARGIN = 0.25
 #: How far inside a sphere (in tolerances) a checking point must lie to count as covered.
 _CHECK_MARGIN = 0.05
+#: Capsules per block of the dense coverage computation.
+_CAPSULE_BLOCK = 32
 #: Points per sphere for the measured stray.
 _STRAY_POINTS = 64
 
@@ -87,6 +90,10 @@ class SphereCover:
         cover is complete).
     tolerance : float, m
         The stray allowed when the cover was built.
+    ends : (k, 3) float, m, link frame
+        Element i is the capsule from ``centers[i]`` to ``ends[i]`` of radius ``radii[i]``;
+        a sphere where the two are equal. Default (and always unless ``cover_link`` was
+        asked for capsules): equal to ``centers``, all spheres.
     """
 
     centers: np.ndarray
@@ -94,30 +101,34 @@ class SphereCover:
     max_stray: float
     uncovered: float
     tolerance: float
+    ends: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("centers", "radii"):
+        if self.ends is None:
+            object.__setattr__(self, "ends", self.centers)
+        for name in ("centers", "radii", "ends"):
             value = np.array(getattr(self, name), dtype=np.float64)
             value.setflags(write=False)
             object.__setattr__(self, name, value)
 
     @property
     def count(self) -> int:
-        """The number of spheres."""
+        """The number of elements (spheres and capsules)."""
         return int(len(self.radii))
 
+    @property
+    def is_capsule(self) -> np.ndarray:
+        """(k,) bool: which elements are capsules (their two ends differ)."""
+        return np.any(self.centers != self.ends, axis=1)
+
     def contains(self, points: np.ndarray) -> np.ndarray:
-        """Whether each point lies inside at least one sphere.
+        """Whether each point lies inside at least one sphere (or capsule).
 
         points : (N, 3) float, m, link frame -> (N,) bool
         """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        out = np.zeros(len(pts), dtype=bool)
-        for start in range(0, len(pts), 4096):
-            block = pts[start:start + 4096]
-            d2 = ((block[:, None, :] - self.centers[None, :, :]) ** 2).sum(axis=2)
-            out[start:start + 4096] = (d2 <= (self.radii**2)[None, :]).any(axis=1)
-        return out
+        hits = _coverage(self.centers, self.ends, self.radii, pts, 0.0)
+        return np.asarray(hits.sum(axis=0)).ravel() > 0
 
 
 def union_signed_distance(geoms: Sequence[LinkGeometry], points: np.ndarray) -> np.ndarray:
@@ -197,15 +208,33 @@ def _candidates(geoms: Sequence[LinkGeometry], points: np.ndarray, normals: np.n
     return centers[keep], depth[keep] + tolerance - _STRAY_MARGIN
 
 
-def _coverage(centers: np.ndarray, radii: np.ndarray, points: np.ndarray, margin: float) -> sparse.csr_matrix:
-    """(M, S) sparse bool: sample s lies at least ``margin`` inside candidate m."""
+def _coverage(a: np.ndarray, b: np.ndarray, radii: np.ndarray, points: np.ndarray,
+              margin: float) -> sparse.csr_matrix:
+    """(M, S) sparse: sample s lies at least ``margin`` inside element m (the capsule from
+    a[m] to b[m] of radius radii[m]; a sphere when a[m] == b[m])."""
     reach = np.maximum(radii - margin, 0.0)
-    lists = cKDTree(points).query_ball_point(centers, reach)
-    counts = np.fromiter((len(row) for row in lists), dtype=np.int64, count=len(lists))
-    indptr = np.concatenate([[0], np.cumsum(counts)])
-    indices = np.concatenate([np.asarray(row, dtype=np.int64) for row in lists]) if indptr[-1] else np.zeros(0, np.int64)
-    data = np.ones(len(indices), dtype=np.int32)
-    return sparse.csr_matrix((data, indices, indptr), shape=(len(centers), len(points)))
+    capsule = np.any(a != b, axis=1)
+    rows, cols = [], []
+    spheres = np.nonzero(~capsule)[0]
+    if len(spheres):
+        lists = cKDTree(points).query_ball_point(a[spheres], reach[spheres])
+        counts = np.fromiter((len(row) for row in lists), dtype=np.int64, count=len(lists))
+        rows.append(np.repeat(spheres, counts))
+        cols.append(np.concatenate([np.asarray(row, dtype=np.int64) for row in lists]) if counts.sum()
+                    else np.zeros(0, np.int64))
+    for start in range(0, int(capsule.sum()), _CAPSULE_BLOCK):
+        idx = np.nonzero(capsule)[0][start:start + _CAPSULE_BLOCK]
+        ab = b[idx] - a[idx]
+        ap = points[None, :, :] - a[idx, None, :]
+        t = np.clip(np.einsum("msk,mk->ms", ap, ab) / np.einsum("mk,mk->m", ab, ab)[:, None], 0.0, 1.0)
+        gap = ap - t[:, :, None] * ab[:, None, :]
+        r, c = np.nonzero(np.einsum("msk,msk->ms", gap, gap) <= (reach[idx] ** 2)[:, None])
+        rows.append(idx[r])
+        cols.append(c)
+    rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+    cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+    data = np.ones(len(rows), dtype=np.int32)
+    return sparse.csr_matrix((data, (rows, cols)), shape=(len(a), len(points)))
 
 
 def _greedy(cover: sparse.csr_matrix, chosen: list[int], limit: int) -> np.ndarray:
@@ -239,15 +268,27 @@ def _fibonacci_sphere(count: int) -> np.ndarray:
 
 
 def measure_stray(geoms: Sequence[LinkGeometry], centers: np.ndarray, radii: np.ndarray,
-                  rng: np.random.Generator, points_per_sphere: int = _STRAY_POINTS) -> float:
-    """The largest distance of a point on a sphere's surface outside the geometry (m, >= 0),
-    on ``points_per_sphere`` points per sphere turned by a random rotation."""
+                  rng: np.random.Generator, points_per_sphere: int = _STRAY_POINTS,
+                  ends: np.ndarray | None = None) -> float:
+    """The largest distance of a point on a sphere's (or capsule's) surface outside the
+    geometry (m, >= 0), on ``points_per_sphere`` points per sphere turned by a random
+    rotation (a capsule: that many at each of 9 stations along its segment)."""
     if len(radii) == 0:
         return 0.0
+    ends = centers if ends is None else ends
     unit = _fibonacci_sphere(points_per_sphere)
-    turn = trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3]
-    pts = (centers[:, None, :] + radii[:, None, None] * (unit @ turn.T)[None]).reshape(-1, 3)
-    return float(max(0.0, union_signed_distance(geoms, pts).max()))
+    unit = unit @ trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3].T
+    stations = np.linspace(0.0, 1.0, 9)
+    worst = 0.0
+    for is_capsule in (False, True):
+        pick = np.any(centers != ends, axis=1) == is_capsule
+        if not pick.any():
+            continue
+        t = stations if is_capsule else stations[:1]
+        axis_pts = centers[pick, None, :] + t[None, :, None] * (ends[pick] - centers[pick])[:, None, :]
+        pts = axis_pts[:, :, None, :] + radii[pick, None, None, None] * unit[None, None]
+        worst = max(worst, float(union_signed_distance(geoms, pts.reshape(-1, 3)).max()))
+    return worst
 
 
 def _check(geoms, tolerance, rng, max_spheres) -> tuple[Sequence[LinkGeometry], float, np.random.Generator, int]:
@@ -266,7 +307,8 @@ def _check(geoms, tolerance, rng, max_spheres) -> tuple[Sequence[LinkGeometry], 
 
 
 def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
-               rng: np.random.Generator | None = None, max_spheres: int = MAX_SPHERES) -> SphereCover:
+               rng: np.random.Generator | None = None, max_spheres: int = MAX_SPHERES,
+               capsules: bool = False) -> SphereCover:
     """Few spheres covering the surface of ``geoms`` (one link), straying <= ``tolerance``.
 
     geoms : the link's collision geometries (link frame); their union is covered (the
@@ -275,6 +317,8 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
     tolerance : m, the largest stray allowed.
     rng : seeds the samples (default: a fixed seed); same inputs and seed, same spheres.
     max_spheres : the cover stops there and reports the fraction left ``uncovered``.
+    capsules : also offer capsules to the set cover (``SphereCover.ends`` then differ
+        from ``centers`` for them): a box takes ~20 elements instead of ~180.
     """
     geoms, tolerance, rng, max_spheres = _check(geoms, tolerance, rng, max_spheres)
     spacing = _SPACING * tolerance
@@ -282,11 +326,22 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
     area = sum(g.to_trimesh().area for g in geoms)
     spacing = max(spacing, float(np.sqrt(area / len(points))))
     centers, radii = _candidates(geoms, points, normals, tolerance)
+    ends = centers
+    if capsules:
+        lo = np.min([g.bounds[0] for g in geoms], axis=0)
+        hi = np.max([g.bounds[1] for g in geoms], axis=0)
+        depth_of = lambda p: -union_signed_distance(geoms, p)  # noqa: E731
+        cap_a, cap_b, cap_r = capsule_candidates(depth_of, centers, radii - tolerance + _STRAY_MARGIN,
+                                                 principal_axes(geoms, points), float(np.linalg.norm(hi - lo)),
+                                                 tolerance, _STRAY_MARGIN, rng)
+        centers, ends = np.vstack([centers, cap_a]), np.vstack([centers, cap_b])
+        radii = np.concatenate([radii, cap_r])
     margins = [_COVER_MARGIN * spacing]
     groups = [points]
     chosen: list[int] = []
     for _ in range(_REPAIR_ROUNDS):
-        cover = sparse.hstack([_coverage(centers, radii, g, m) for g, m in zip(groups, margins)], format="csr")
+        cover = sparse.hstack([_coverage(centers, ends, radii, g, m) for g, m in zip(groups, margins)],
+                              format="csr")
         _greedy(cover, chosen, max_spheres)
         # A fresh, denser sample checks the cover; it is independent of the spheres chosen.
         check, check_normals = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng,
@@ -294,17 +349,19 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
         # Points less than _CHECK_MARGIN inside every sphere count as missed: slivers are
         # thin, their neighbourhoods are not, so a check this strict finds every one.
         inside = SphereCover(centers[chosen], radii[chosen] - _CHECK_MARGIN * tolerance, 0.0, 0.0,
-                             tolerance).contains(check)
+                             tolerance, ends[chosen]).contains(check)
         if inside.all() or len(chosen) >= max_spheres:
             break
         # The missed points (slivers between spheres) join the samples with a wide margin,
         # which closes the sliver around each; their inward offsets join the candidates.
         missed, missed_normals = check[~inside], check_normals[~inside]
         extra_c, extra_r = _candidates(geoms, missed, missed_normals, tolerance, grid=False)
-        centers, radii = np.vstack([centers, extra_c]), np.concatenate([radii, extra_r])
+        centers, ends = np.vstack([centers, extra_c]), np.vstack([ends, extra_c])
+        radii = np.concatenate([radii, extra_r])
         groups.append(missed)
         margins.append(_REPAIR_MARGIN * tolerance)
-    centers, radii = centers[chosen], radii[chosen]
+    centers, ends, radii = centers[chosen], ends[chosen], radii[chosen]
     check, _ = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng, _CHECK_FACTOR * _MAX_SAMPLES)
-    uncovered_fraction = float(1.0 - SphereCover(centers, radii, 0.0, 0.0, tolerance).contains(check).mean())
-    return SphereCover(centers, radii, measure_stray(geoms, centers, radii, rng), uncovered_fraction, tolerance)
+    uncovered = float(1.0 - SphereCover(centers, radii, 0.0, 0.0, tolerance, ends).contains(check).mean())
+    stray = measure_stray(geoms, centers, radii, rng, ends=ends)
+    return SphereCover(centers, radii, stray, uncovered, tolerance, ends)
