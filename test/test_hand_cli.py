@@ -5,12 +5,15 @@ start-up check: what a user runs to check a new hand, and what stops a node with
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from grasp_apso.errors import HandDescriptionError
 from grasp_apso.tools.hand_cli import main
-from hand_files import installed_hand, write_allegro_like
+from hand_files import write_allegro_like
+
+PAPER_YAML = Path(__file__).resolve().parents[1] / "grasp_apso" / "data" / "hand.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -19,36 +22,39 @@ def allegro(tmp_path_factory):
 
 
 def test_text_output_names_everything_a_user_checks(capsys):
-    assert main([str(installed_hand("shadow"))]) == 0
+    assert main([str(PAPER_YAML)]) == 0
     out = capsys.readouterr().out
-    assert "root link (palm): robot0:palm" in out
-    assert "held above the palm (fixed, not actuated for grasping): robot0:WRJ1=0, robot0:WRJ0=0" in out
-    assert "finger th (thumb): tip robot0:thdistal" in out
-    assert "robot0:FFJ3" in out and "pre-shape" in out and "+1 closes" in out
-    assert "coupling: robot0:FFJ0 = 1.14184 * robot0:FFJ1" in out
+    assert "root link (palm): palm   palm normal (root frame): [0.0, 0.0, 1.0]" in out
+    assert "held above the palm (fixed, not actuated for grasping): wrist_z=0, wrist_y=0, wrist_x=0" in out
+    assert "finger thumb: tip thumb_tip" in out
+    assert "index_pivot" in out and "pre-shape" in out and "+1 closes" in out
+    assert "coupling: index_middle = 1.5 * index_distal + 0  (joint index_middle mimic)" in out
     assert "collision spheres:" in out and "stray" in out
     assert out.count("pad on ") == 5
 
 
-def test_json_output(capsys, allegro):
-    assert main([str(allegro), "--json"]) == 0
+def test_json_output_and_picture(capsys, tmp_path):
+    picture = tmp_path / "hand.png"
+    assert main([str(PAPER_YAML), "--json", "--picture", str(picture)]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["root_link"] == "palm"
-    assert [f["name"] for f in data["fingers"]] == ["index", "middle", "ring", "thumb"]
-    assert [f["thumb"] for f in data["fingers"]] == [False, False, False, True]
-    assert data["fingers"][0]["closing"] == [0, 1, 1, 1]
-    assert set(data["spheres"]) >= {"palm", "index_tip", "thumb_tip"}
+    assert [f["name"] for f in data["fingers"]] == ["little", "ring", "middle", "index", "thumb"]
+    assert [f["thumb"] for f in data["fingers"]] == [False] * 4 + [True]
+    assert data["fingers"][0]["closing"] == [0, 1, 1]
+    assert len(data["actuated_joints"]) == 15
     for link, s in data["spheres"].items():
         assert s["count"] >= 1 and s["max_stray_m"] <= 0.0021, link
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_hand_config_on_the_command_line(capsys, allegro, tmp_path):
     cfg = tmp_path / "allegro.yaml"
-    cfg.write_text("thumb: index\nclosing: {index_joint_0: -1}\n")
+    cfg.write_text("thumb: index\nclosing: {index_joint_0: -1}\nmax_spheres: 4\n")
     assert main([str(allegro), "--hand-config", str(cfg), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     index = data["fingers"][0]
-    assert index["thumb"] and index["closing"][0] == -1
+    assert index["name"] == "index" and index["thumb"] and index["closing"][0] == -1
+    assert max(s["count"] for s in data["spheres"].values()) <= 4
 
 
 @pytest.mark.parametrize("content, name, words", [

@@ -41,7 +41,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _r(values, digits: int = 5) -> list[float]:
-    return [round(float(v), digits) for v in np.ravel(values)]
+    return [round(float(v), digits) + 0.0 for v in np.ravel(values)]  # + 0.0: no "-0.0"
 
 
 def summary(hand) -> dict[str, Any]:
