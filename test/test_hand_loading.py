@@ -227,3 +227,7 @@ def test_loaded_once_and_cached_by_content(files, tmp_path):
         load_hand(copy, spheres=False)
     with pytest.raises(ValueError):
         a.lower[0] = 1.0  # read-only
+    with pytest.raises(TypeError):
+        a.collision["r_palm"] = ()
+    with pytest.raises(AttributeError):
+        a.root_link = "x"

@@ -16,11 +16,12 @@ from __future__ import annotations
 import hashlib
 from dataclasses import replace
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
 from ... import tunables
-from ...cache import BoundedCache
+from ...cache import BoundedCache, approximate_nbytes
 from ...errors import HandDescriptionError
 from .config import HandConfig, read_config
 from .derive import derive_fingers, find_root, finger_label, finger_tips
@@ -30,7 +31,12 @@ from .model import Finger, HandModel, readonly
 __all__ = ["load_hand", "hand_from_raw", "SUFFIXES"]
 
 SUFFIXES = {".urdf": "URDF", ".xml": "MJCF", ".yaml": "YAML", ".yml": "YAML"}
-_CACHE: BoundedCache[HandModel] = BoundedCache(max_entries=16, max_bytes=1_000_000_000)
+def _hand_bytes(hand: HandModel) -> int:
+    """Approximate memory of a hand: its meshes and spheres dominate."""
+    return approximate_nbytes([dict(hand.collision), dict(hand.spheres), hand.origins])
+
+
+_CACHE: BoundedCache[HandModel] = BoundedCache(max_entries=16, max_bytes=1_000_000_000, size_of=_hand_bytes)
 #: Seed of the sphere covers (deterministic per hand).
 _SEED = 20
 
@@ -128,8 +134,9 @@ def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres:
     bare = HandModel(
         name=raw.name, root_link=root, actuated_joints=kin.actuated, lower=kin.lower, upper=kin.upper,
         fingers=(), palm_normal=readonly(np.zeros(3)), links=kin.links, link_parents=kin.parents,
-        collision={link.name: tuple(link.geoms) for link in raw.links if link.geoms}, spheres={},
-        couplings=kin.couplings, held_joints=dict(kin.held), notes=(), source_hash=source_hash,
+        collision=MappingProxyType({link.name: tuple(link.geoms) for link in raw.links if link.geoms}),
+        spheres=MappingProxyType({}), couplings=kin.couplings, held_joints=MappingProxyType(dict(kin.held)),
+        notes=(), source_hash=source_hash,
         joint_names=kin.joint_names, origins=kin.origins, motions=kin.motions, full_matrix=kin.matrix,
         full_offset=kin.offset, root_inverse=readonly(np.eye(4)))
     top = bare.link_transforms_batch(np.zeros((1, len(kin.actuated))))[0]
@@ -148,7 +155,7 @@ def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres:
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
     fingers = tuple(_finger(bare, label, sem, cfg) for label, sem in zip(labels, semantics))
     covers = _spheres(bare, cfg) if spheres else {}
-    return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=covers,
+    return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=MappingProxyType(covers),
                    notes=tuple(raw.notes) + tuple(notes))
 
 
