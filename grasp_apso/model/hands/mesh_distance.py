@@ -3,8 +3,10 @@
 trimesh's ``closest_point`` takes about 1 s for 3,000 points on a 5,000-face mesh; the
 sphere cover of a hand link needs that many queries per link. Here each point first takes
 the exact distance to the triangles of its nearest centroids (a k-d tree) as an upper
-bound, then visits every triangle but measures only those whose bounding sphere (centroid,
-farthest vertex) comes closer than the best distance so far: exact, and about 20x faster.
+bound, then visits groups of neighbouring triangles (32 in Morton order), skipping a group
+whose bounding sphere lies farther than the best distance so far, and within a group
+measures only the triangles whose own bounding sphere (centroid, farthest vertex) comes
+closer: exact, and 20x to 100x faster.
 
 The sign comes from the angle-weighted pseudo-normal of the closest feature (face, edge
 or vertex): exact for a closed, consistently oriented mesh, robust next to edges (where
@@ -24,8 +26,9 @@ from scipy.spatial import cKDTree
 __all__ = ["MeshDistance"]
 
 _jit = numba.njit(cache=True, nogil=True)
-#: Nearest centroids measured first to seed the bound.
+#: Nearest centroids measured first to seed the bound; triangles per group.
 _SEED_TRIANGLES = 4
+_GROUP = 32
 
 
 # Regions of a triangle a, b, c where the closest point lies (index into the pseudo-normals).
@@ -80,10 +83,12 @@ def _point_triangle_sq(px, py, pz, tri):
 
 
 @_jit
-def _distances(points, triangles, centers, reach, seeds, pseudo, out):
+def _distances(points, triangles, centers, reach, seeds, pseudo, groups, group_center, group_reach, out):
     """out[i] = signed distance from points[i] to the mesh (m, > 0 outside); seeds (N, k)
-    are measured first. The sign: the offset from the closest point against the
-    angle-weighted pseudo-normal of the closest feature (Baerentzen and Aanaes 2005),
+    are measured first. Triangles come in groups of neighbours (``groups[g]`` to
+    ``groups[g + 1]``) with a bounding sphere each: a group that cannot come closer than
+    the best so far is skipped whole. The sign: the offset from the closest point against
+    the angle-weighted pseudo-normal of the closest feature (Baerentzen and Aanaes 2005),
     exact for a closed, consistently oriented mesh."""
     for i in range(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
@@ -96,14 +101,18 @@ def _distances(points, triangles, centers, reach, seeds, pseudo, out):
             if d < best:
                 best, best_t, best_r, ox, oy, oz = d, t, r, dx, dy, dz
         best_d = math.sqrt(best)
-        for t in range(triangles.shape[0]):
-            cx, cy, cz = px - centers[t, 0], py - centers[t, 1], pz - centers[t, 2]
-            lower = math.sqrt(cx * cx + cy * cy + cz * cz) - reach[t]
-            if lower < best_d:
-                d, r, dx, dy, dz = _point_triangle_sq(px, py, pz, triangles[t])
-                if d < best:
-                    best, best_t, best_r, ox, oy, oz = d, t, r, dx, dy, dz
-                    best_d = math.sqrt(best)
+        for g in range(group_reach.shape[0]):
+            gx, gy, gz = px - group_center[g, 0], py - group_center[g, 1], pz - group_center[g, 2]
+            if math.sqrt(gx * gx + gy * gy + gz * gz) - group_reach[g] >= best_d:
+                continue
+            for t in range(groups[g], groups[g + 1]):
+                cx, cy, cz = px - centers[t, 0], py - centers[t, 1], pz - centers[t, 2]
+                lower = math.sqrt(cx * cx + cy * cy + cz * cz) - reach[t]
+                if lower < best_d:
+                    d, r, dx, dy, dz = _point_triangle_sq(px, py, pz, triangles[t])
+                    if d < best:
+                        best, best_t, best_r, ox, oy, oz = d, t, r, dx, dy, dz
+                        best_d = math.sqrt(best)
         n = pseudo[best_t, best_r]
         out[i] = best_d if ox * n[0] + oy * n[1] + oz * n[2] >= 0.0 else -best_d
 
@@ -129,6 +138,17 @@ def _pseudo_normals(mesh: trimesh.Trimesh) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
+def _morton_order(centers: np.ndarray) -> np.ndarray:
+    """Indices that sort points along a Morton (Z-order) curve: neighbours stay together."""
+    lo, hi = centers.min(axis=0), centers.max(axis=0)
+    q = np.floor((centers - lo) / np.maximum(hi - lo, 1e-12) * 1023.0).astype(np.uint64)
+    code = np.zeros(len(centers), dtype=np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
 class MeshDistance:
     """Exact signed point-to-mesh distance for one mesh (built once, reused).
 
@@ -136,11 +156,22 @@ class MeshDistance:
     """
 
     def __init__(self, mesh: trimesh.Trimesh):
-        self._triangles = np.ascontiguousarray(mesh.triangles, dtype=np.float64)
+        triangles = np.asarray(mesh.triangles, dtype=np.float64)
+        order = _morton_order(triangles.mean(axis=1))
+        self._triangles = np.ascontiguousarray(triangles[order])
         self._centers = self._triangles.mean(axis=1)
         self._reach = np.linalg.norm(self._triangles - self._centers[:, None, :], axis=2).max(axis=1)
         self._tree = cKDTree(self._centers)
-        self._pseudo = _pseudo_normals(mesh)
+        self._pseudo = np.ascontiguousarray(_pseudo_normals(mesh)[order])
+        self._groups = np.append(np.arange(0, len(order), _GROUP), len(order)).astype(np.int64)
+        count = len(self._groups) - 1
+        self._group_center = np.empty((count, 3))
+        self._group_reach = np.empty(count)
+        for g in range(count):
+            a, b = self._groups[g], self._groups[g + 1]
+            corners = self._triangles[a:b].reshape(-1, 3)
+            self._group_center[g] = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+            self._group_reach[g] = np.linalg.norm(corners - self._group_center[g], axis=1).max()
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """points : (N, 3) float, m -> (N,) float, m (> 0 outside)."""
@@ -149,5 +180,6 @@ class MeshDistance:
         _, seeds = self._tree.query(pts, k=k)
         seeds = np.ascontiguousarray(np.asarray(seeds, dtype=np.int64).reshape(len(pts), k))
         out = np.empty(len(pts))
-        _distances(pts, self._triangles, self._centers, self._reach, seeds, self._pseudo, out)
+        _distances(pts, self._triangles, self._centers, self._reach, seeds, self._pseudo, self._groups,
+                   self._group_center, self._group_reach, out)
         return out
