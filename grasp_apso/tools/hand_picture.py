@@ -5,7 +5,7 @@
 front of the palm (its normal points out of the picture) and from the side (the fingers'
 curl in profile). Each panel shows
 
-- the spheres that stand for the links in the search, translucent in the colour of the
+- the spheres (and capsules) that stand for the links in the search, translucent in the colour of the
   finger the link belongs to (tan for the palm and the links no finger moves);
 - over them, every link's exact collision geometry as a light grey translucent surface
   (the spheres' outline beyond it is their stray);
@@ -47,8 +47,8 @@ _LINK_TRIANGLES = 600
 #: Icosphere level of a drawn sphere by the number of spheres in the picture.
 _SPHERE_LEVEL_UNDER = ((600, 1), (10**9, 0))
 _CLOSED_FRACTION = 0.8
-_SPHERE_ALPHA = 0.12
-_GEOMETRY_ALPHA = 0.3
+_SPHERE_ALPHA = 0.2
+_GEOMETRY_ALPHA = 0.2
 
 
 def finger_color(name: str, index: int) -> str:
@@ -109,9 +109,14 @@ class _Scene:
             cover = hand.spheres.get(link)
             if cover is None or len(cover.radii) == 0:
                 continue
-            centers = transform(pose, np.asarray(cover.centers)) * MM
+            a = transform(pose, np.asarray(cover.centers)) * MM
+            b = transform(pose, np.asarray(getattr(cover, "ends", cover.centers))) * MM
             radii = np.asarray(cover.radii) * MM
-            tris = (centers[:, None, None, :] + radii[:, None, None, None] * unit_v[unit_f][None]).reshape(-1, 3, 3)
+            # A capsule is the unit sphere's two halves moved to its two ends (a sphere
+            # where they coincide); the triangles across the cut make its side.
+            upper = (unit_v @ (b - a).T).T > 0  # (k, V)
+            vertices = np.where(upper[:, :, None], b[:, None, :], a[:, None, :]) + radii[:, None, None] * unit_v
+            tris = vertices[:, unit_f].reshape(-1, 3, 3)
             spheres_by_color.setdefault(link_colors.get(link, PALM_COLOR), []).append(tris)
         self.geometry = np.concatenate(geometry) if geometry else np.zeros((0, 3, 3))
         self.geometry_colors = shaded_colors(self.geometry, np.array(rgb(GEOMETRY_COLOR)), light, _GEOMETRY_ALPHA)
@@ -184,7 +189,10 @@ def _title(hand: Any) -> str:
     uncovered = max((c.uncovered for c in covers), default=0.0)
     thumb = next((f.name for f in hand.fingers if getattr(f, "is_thumb", False)), None)
     line1 = f"{hand.name}: {len(hand.fingers)} fingers" + (f" (thumb: {thumb})" if thumb else " (no thumb)")
-    line2 = f"{count} collision spheres over {len(covers)} links, largest stray {stray * MM:.2f} mm"
+    capsules = sum(int(np.any(np.asarray(getattr(c, "ends", c.centers)) != np.asarray(c.centers), axis=1).sum())
+                   for c in covers)
+    kinds = f"spheres and capsules ({capsules} capsules)" if capsules else "spheres"
+    line2 = f"{count} collision {kinds} over {len(covers)} links, largest stray {stray * MM:.2f} mm"
     if uncovered > 0:
         line2 += f", up to {uncovered:.1%} of a link's surface uncovered"
     return line1 + "\n" + line2
