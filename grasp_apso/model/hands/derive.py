@@ -16,7 +16,8 @@
 - Thumb: the finger whose closing motion opposes the others' most.
 - Palm normal: from the root's collision geometry toward the centre of the fingertips of
   the closed hand, made perpendicular to the direction the straight fingers extend in when
-  most of it remains (fallback: the fingers' mean closing direction).
+  most of it remains, then the mean normal of the palm's surface facing that way (within
+  45 degrees; fallback: the fingers' mean closing direction).
 - Pads: :func:`.pads.find_pad` on the tip link, with the palmar direction (the tip's
   closing motion) and the distal direction in that link's frame.
 """
@@ -122,9 +123,11 @@ def _labels(names: list[str]) -> list[str] | None:
         for toks in tokens:
             for t in set(toks):
                 counts[t] = counts.get(t, 0) + 1
-        keep = [[t for t in toks if counts[t] * 2 <= len(names) and not (len(t) == 1 and t.isalpha())]
-                for toks in tokens]
+        shared = [[t for t in toks if counts[t] * 2 <= len(names)] for toks in tokens]
+        keep = [[t for t in toks if not (len(t) == 1 and t.isalpha())] for toks in shared]
         cores = ["_".join(k) for k in keep]
+        if not all(cores):  # single letters are the names themselves (Schunk SVH: c, r, q ...)
+            cores = ["_".join(k) for k in shared]
         if all(cores):
             prefix, suffix = len(_common(cores)), len(_common([c[::-1] for c in cores]))
             trimmed = [c[prefix:len(c) - suffix].strip("_") for c in cores]
@@ -225,7 +228,11 @@ def derive_fingers(hand, tips: list[str], overrides: dict) -> tuple[list[FingerS
             curl += sense * v
             rng_vote += sense * ((hand.upper[k] - q0[k]) - (q0[k] - hand.lower[k]))
         sigma = 1.0 if rng_vote >= 0 else -1.0
-        info.append({"tip": tip, "joints": joints, "kinds": kinds, "curl": curl, "sigma": sigma,
+        below = hand.chain(tip)[hand.chain(tip).index(hand.root_link) + 1:]
+        first = next(hand.link_index(n) for n in below if hand.motions[hand.link_index(n)])
+        m0 = hand.motions[first][0]
+        base = poses0[first][:3, :3] @ np.asarray(m0.anchor) + poses0[first][:3, 3]
+        info.append({"tip": tip, "joints": joints, "kinds": kinds, "curl": curl, "sigma": sigma, "base": base,
                      "axis": axis_f, "last_link": last_link, "vote": rng_vote})
 
     def closing_dirs():
@@ -321,6 +328,11 @@ def _palm_normal(hand, info, tip_points, q0, thumb_f) -> np.ndarray:
     # perpendicular to them. (Fingers that extend along the normal, as a Barrett hand's,
     # leave little of it and keep it.)
     straight = tip_points(q0[None])[0]
-    along = _unit(np.mean([straight[f] for f in range(len(info)) if f != thumb_f], axis=0))
+    along = _unit(np.mean([_unit(straight[f] - info[f]["base"]) for f in range(len(info)) if f != thumb_f], axis=0))
     across = normal - float(np.dot(normal, along)) * along
-    return _unit(across) if np.linalg.norm(across) > 0.5 else normal
+    normal = _unit(across) if np.linalg.norm(across) > 0.5 else normal
+    # The palm's face: the area-weighted mean normal of the root's surface facing within 45
+    # degrees of that direction (a box palm: exactly its face's normal).
+    facing = mesh.face_normals @ normal > _SIDEWAYS_COS
+    face = (mesh.area_faces[facing, None] * mesh.face_normals[facing]).sum(axis=0)
+    return _unit(face) if np.linalg.norm(face) > 1e-12 else normal

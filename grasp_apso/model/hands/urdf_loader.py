@@ -88,7 +88,8 @@ def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF
     import yourdfpy  # a pinned dependency; imported here to keep package import light
 
     try:
-        robot = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=False,
+        # Bytes: lxml refuses a str that carries an encoding declaration (<?xml ... encoding=?>).
+        robot = yourdfpy.URDF.load(io.BytesIO(text.encode("utf-8")), build_scene_graph=False,
                                    build_collision_scene_graph=False, load_meshes=False,
                                    load_collision_meshes=False)
     except Exception as exc:  # lxml / yourdfpy errors: the message may quote the file
