@@ -147,7 +147,8 @@ def write_allegro_like(folder: str | Path, mesh_links: str = "mixed", coupled: b
     else:
         meshes = set()
     w = _Writer(root, meshes)
-    w.lines += ['<?xml version="1.0"?>', '<robot name="allegro_like">']
+    # An encoding declaration, as many real URDFs have (lxml refuses it on a str).
+    w.lines += ['<?xml version="1.0" encoding="utf-8"?>', '<robot name="allegro_like">']
     w.link("palm", [("box", (0.0408, 0.1130, 0.095), (-0.0093, 0.0, -0.0475), (0, 0, 0))])
     for finger, (xyz, rpy, first) in _FINGERS.items():
         parts = ("base", "proximal", "middle", "distal")

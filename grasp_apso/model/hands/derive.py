@@ -104,17 +104,21 @@ def finger_label(*candidates: list[str]) -> list[str]:
     """Finger names from link names (one list per candidate source, e.g. the tip links and
     the first links below the palm): per source, the tokens (split at ``_ : - .``) that
     more than half of the names share and single-letter side marks (``l``, ``R``) are
-    dropped, then the characters all remaining names begin or end with; the source whose
-    names come out shortest (and distinct) wins. Shadow: ``robot0:ffdistal`` -> ``ff``."""
+    dropped, then the characters all remaining names begin or end with (or only the first
+    remaining token); the labels that come out shortest (and distinct) win. Shadow:
+    ``robot0:ffdistal`` -> ``ff``; Inspire: ``thumb_proximal_base`` -> ``thumb``."""
     best = None
     for names in candidates:
-        labels = _labels(names)
-        if labels is not None and (best is None or sum(map(len, labels)) < sum(map(len, best))):
-            best = labels
+        for first_token in (False, True):
+            labels = _labels(names, first_token)
+            if labels is not None and (best is None or sum(map(len, labels)) < sum(map(len, best))):
+                best = labels
     return best if best is not None else list(candidates[0])
 
 
-def _labels(names: list[str]) -> list[str] | None:
+def _labels(names: list[str], first_token: bool = False) -> list[str] | None:
+    """Labels of one source (None: not distinct); ``first_token``: only the first token
+    each name keeps (``thumb_base`` -> ``thumb``)."""
     import re
 
     tokens = [[t for t in re.split(r"[_:\-. ]+", n) if t] for n in names]
@@ -127,7 +131,10 @@ def _labels(names: list[str]) -> list[str] | None:
         keep = [[t for t in toks if not (len(t) == 1 and t.isalpha())] for toks in shared]
         cores = ["_".join(k) for k in keep]
         if not all(cores):  # single letters are the names themselves (Schunk SVH: c, r, q ...)
+            keep = shared
             cores = ["_".join(k) for k in shared]
+        if first_token:
+            cores = [k[0] if k else "" for k in keep]
         if all(cores):
             prefix, suffix = len(_common(cores)), len(_common([c[::-1] for c in cores]))
             trimmed = [c[prefix:len(c) - suffix].strip("_") for c in cores]
