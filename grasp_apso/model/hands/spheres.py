@@ -30,10 +30,10 @@ from typing import Sequence
 import numpy as np
 import trimesh
 from scipy import sparse
-from scipy.spatial import cKDTree
 
 from ...errors import InputError
 from .capsules import capsule_candidates, principal_axes
+from .cover_kernels import covered_pairs
 from .geometry import LinkGeometry
 
 __all__ = ["SphereCover", "cover_link", "union_signed_distance", "surface_samples", "MAX_STRAY",
@@ -68,8 +68,6 @@ _REPAIR_ROUNDS = 6
 _REPAIR_MARGIN = 0.25
 #: How far inside a sphere (in tolerances) a checking point must lie to count as covered.
 _CHECK_MARGIN = 0.05
-#: Capsules per block of the dense coverage computation.
-_CAPSULE_BLOCK = 32
 #: Points per sphere for the measured stray.
 _STRAY_POINTS = 64
 
@@ -213,26 +211,8 @@ def _coverage(a: np.ndarray, b: np.ndarray, radii: np.ndarray, points: np.ndarra
     """(M, S) sparse: sample s lies at least ``margin`` inside element m (the capsule from
     a[m] to b[m] of radius radii[m]; a sphere when a[m] == b[m])."""
     reach = np.maximum(radii - margin, 0.0)
-    capsule = np.any(a != b, axis=1)
-    rows, cols = [], []
-    spheres = np.nonzero(~capsule)[0]
-    if len(spheres):
-        lists = cKDTree(points).query_ball_point(a[spheres], reach[spheres])
-        counts = np.fromiter((len(row) for row in lists), dtype=np.int64, count=len(lists))
-        rows.append(np.repeat(spheres, counts))
-        cols.append(np.concatenate([np.asarray(row, dtype=np.int64) for row in lists]) if counts.sum()
-                    else np.zeros(0, np.int64))
-    for start in range(0, int(capsule.sum()), _CAPSULE_BLOCK):
-        idx = np.nonzero(capsule)[0][start:start + _CAPSULE_BLOCK]
-        ab = b[idx] - a[idx]
-        ap = points[None, :, :] - a[idx, None, :]
-        t = np.clip(np.einsum("msk,mk->ms", ap, ab) / np.einsum("mk,mk->m", ab, ab)[:, None], 0.0, 1.0)
-        gap = ap - t[:, :, None] * ab[:, None, :]
-        r, c = np.nonzero(np.einsum("msk,msk->ms", gap, gap) <= (reach[idx] ** 2)[:, None])
-        rows.append(idx[r])
-        cols.append(c)
-    rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
-    cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+    cell = float(np.median(reach)) if len(reach) else 1.0
+    rows, cols = covered_pairs(a, b, reach, points, cell)
     data = np.ones(len(rows), dtype=np.int32)
     return sparse.csr_matrix((data, (rows, cols)), shape=(len(a), len(points)))
 
