@@ -252,3 +252,30 @@ def test_mjcf_meshes_fingers_and_size(tmp_path):
     with pytest.raises(HandDescriptionError, match="over the limit") as info:
         load_hand(_mjcf(tmp_path, 2), spheres=False, max_file_bytes=100)
     assert info.value.field == "hand_description"
+
+
+@pytest.mark.parametrize("change, outcome", [
+    (('<joint name="f0_j1" axis="0 1 0" range="0 1.5"/>', '<joint name="f0_j1" axis="0 1 0"/>'),
+     "note: joint f0_j1: continuous, range set to [-pi, pi]"),
+    (('<joint name="f0_j1" axis="0 1 0" range="0 1.5"/>', '<joint name="f0_j1" type="slide" axis="0 1 0"/>'),
+     "error: f0_j1.*no limits"),
+    (('<joint name="f0_j1" axis="0 1 0" range="0 1.5"/>', '<joint name="f0_j1" type="ball"/>'),
+     "error: f0_j1.*ball joints are not supported"),
+    (('<body name="palm">', '<body name="palm"><freejoint name="float"/>'),
+     "note: joint float: free joint of the hand's base, ignored"),
+    (('<body name="palm">', '<body name="table" pos="1 0 0"><geom type="box" size="1 1 0.01"/></body><body name="palm">'),
+     "note: body table: not part of the hand, ignored"),
+])
+def test_mjcf_joint_kinds(tmp_path, change, outcome):
+    path = _mjcf(tmp_path, 2)
+    text = path.read_text()
+    assert change[0] in text
+    path.write_text(text.replace(change[0], change[1], 1))
+    kind, _, expected = outcome.partition(": ")
+    if kind == "note":
+        hand = load_hand(path, spheres=False)
+        assert expected in hand.notes
+        assert len(hand.fingers) == 2
+    else:
+        with pytest.raises(HandDescriptionError, match=expected):
+            load_hand(path, spheres=False)
