@@ -102,8 +102,7 @@ def test_shadow_distal_joints_follow_their_middle_joints(hands):
     assert c.multiplier == pytest.approx(0.00805 / 0.00705)  # the tendon's coefficients
 
 
-def _mujoco_reference(hand, path: Path, q: np.ndarray) -> dict[str, np.ndarray]:
-    model = mujoco.MjModel.from_xml_path(str(path))
+def _mujoco_reference(hand, model, q: np.ndarray) -> dict[str, np.ndarray]:
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
     full = hand.full_positions(q)
@@ -128,10 +127,11 @@ def _mujoco_reference(hand, path: Path, q: np.ndarray) -> dict[str, np.ndarray]:
 @pytest.mark.parametrize("name", MJCF_HANDS)
 def test_link_transforms_match_mujoco(hands, files, name):
     hand = hands[name]
+    model = mujoco.MjModel.from_xml_path(str(files[name]))
     rng = np.random.default_rng(20)
     for q in rng.uniform(hand.lower, hand.upper, size=(20, hand.n_joints)):
         ours = hand.link_transforms(q)
-        ref = _mujoco_reference(hand, files[name], q)
+        ref = _mujoco_reference(hand, model, q)
         for link in hand.links:
             np.testing.assert_allclose(ours[link][:3, 3], ref[link][:3, 3], atol=1e-6, err_msg=link)
             np.testing.assert_allclose(ours[link][:3, :3], ref[link][:3, :3], atol=1e-6, err_msg=link)

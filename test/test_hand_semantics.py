@@ -151,6 +151,9 @@ def test_the_config_can_name_the_root_and_hold_joints(tmp_path):
     ({"root_link": "nowhere"}, "hand_config.root_link"),
     ({"palm_normal": [0, 0, 0]}, "hand_config.palm_normal"),
     ({"pads": {"ring": {"link": "x"}}}, "hand_config.pads.ring"),
+    ({"fingers": {"a": "index_tip", "b": "nowhere"}}, "hand_config.fingers"),
+    ({"fingers": {"a": "index_tip", "b": "palm"}}, "hand_config.fingers"),
+    ({"hold": {"index_joint_1": 0.1}}, "hand_config.hold"),
 ])
 def test_a_bad_config_is_refused_naming_the_key(allegro_file, config, field):
     with pytest.raises(HandDescriptionError) as info:

@@ -163,10 +163,17 @@ def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[
     names = [link.name for link in raw.links]
     if "fingers" in cfg:
         labels, tips = list(cfg["fingers"]), list(cfg["fingers"].values())
+        by_name = {link.name: link for link in raw.links}
         for label, tip in zip(labels, tips):
             if tip not in names:
                 raise HandDescriptionError(f"hand_config.fingers.{label}: {tip!r} is not a link",
                                            field="hand_config.fingers")
+            if not by_name[tip].geoms:
+                raise HandDescriptionError(f"hand_config.fingers.{label}: link {tip!r} has no collision geometry",
+                                           field="hand_config.fingers")
+            if root not in _ancestors(raw, tip):
+                raise HandDescriptionError(f"hand_config.fingers.{label}: link {tip!r} is not below the root "
+                                           f"link {root}", field="hand_config.fingers")
     else:
         tips = finger_tips(raw, root)
         by_name = {link.name: link for link in raw.links}
@@ -181,6 +188,15 @@ def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[
         raise HandDescriptionError(f"hand_description: {len(tips)} finger(s) below {root}; a hand needs at least two",
                                    field="hand_description")
     return tips, labels
+
+
+def _ancestors(raw: RawHand, link: str) -> set[str]:
+    parents = {item.name: item.parent for item in raw.links}
+    out = set()
+    while parents.get(link) is not None:
+        link = parents[link]
+        out.add(link)
+    return out
 
 
 def _finger(hand: HandModel, label: str, sem, cfg: HandConfig) -> Finger:
