@@ -84,8 +84,8 @@ class SphereCover:
         The largest distance a point of a sphere's surface lies outside the exact
         geometry, measured on points spread over every sphere (<= ``tolerance``).
     uncovered : float
-        Fraction of an independent dense surface sample inside no sphere (0 when the
-        cover is complete).
+        Fraction of the last independent dense surface sample (drawn after the spheres
+        were chosen) inside no sphere: 0 when the cover is complete.
     tolerance : float, m
         The stray allowed when the cover was built.
     ends : (k, 3) float, m, link frame
@@ -319,18 +319,30 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
     margins = [_COVER_MARGIN * spacing]
     groups = [points]
     chosen: list[int] = []
+    uncovered = 1.0
     for _ in range(_REPAIR_ROUNDS):
         cover = sparse.hstack([_coverage(centers, ends, radii, g, m) for g, m in zip(groups, margins)],
                               format="csr")
         _greedy(cover, chosen, max_spheres)
         # A fresh, denser sample checks the cover; it is independent of the spheres chosen.
+        # Points less than _CHECK_MARGIN inside every sphere count as missed: slivers are
+        # thin, their neighbourhoods are not, so a check this strict finds nearly all.
         check, check_normals = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng,
                                                _CHECK_FACTOR * _MAX_SAMPLES)
-        # Points less than _CHECK_MARGIN inside every sphere count as missed: slivers are
-        # thin, their neighbourhoods are not, so a check this strict finds every one.
         inside = SphereCover(centers[chosen], radii[chosen] - _CHECK_MARGIN * tolerance, 0.0, 0.0,
                              tolerance, ends[chosen]).contains(check)
-        if inside.all() or len(chosen) >= max_spheres:
+        if inside.all():
+            # The report's sample: another fresh one, no margin; any miss is repaired too.
+            check, check_normals = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng,
+                                                   _CHECK_FACTOR * _MAX_SAMPLES)
+            inside = SphereCover(centers[chosen], radii[chosen], 0.0, 0.0, tolerance, ends[chosen]).contains(check)
+            uncovered = float(1.0 - inside.mean())
+            if inside.all():
+                break
+        else:
+            uncovered = float(1.0 - SphereCover(centers[chosen], radii[chosen], 0.0, 0.0, tolerance,
+                                                ends[chosen]).contains(check).mean())
+        if len(chosen) >= max_spheres:
             break
         # The missed points (slivers between spheres) join the samples with a wide margin,
         # which closes the sliver around each; their inward offsets join the candidates.
@@ -341,7 +353,5 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
         groups.append(missed)
         margins.append(_REPAIR_MARGIN * tolerance)
     centers, ends, radii = centers[chosen], ends[chosen], radii[chosen]
-    check, _ = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng, _CHECK_FACTOR * _MAX_SAMPLES)
-    uncovered = float(1.0 - SphereCover(centers, radii, 0.0, 0.0, tolerance, ends).contains(check).mean())
     stray = measure_stray(geoms, centers, radii, rng, ends=ends)
     return SphereCover(centers, radii, stray, uncovered, tolerance, ends)
