@@ -255,6 +255,13 @@ def test_mjcf_meshes_fingers_and_size(tmp_path):
     with pytest.raises(HandDescriptionError, match="over the limit") as info:
         load_hand(_mjcf(tmp_path, 2), spheres=False, max_file_bytes=100)
     assert info.value.field == "hand_description"
+    # A mesh over the limit (the file itself under it).
+    path = _mjcf(tmp_path, 2, visual_missing=True)
+    trimesh.creation.icosphere(subdivisions=3).export(tmp_path / "look.stl")
+    limit = path.stat().st_size + 10
+    assert (tmp_path / "look.stl").stat().st_size > limit
+    with pytest.raises(HandDescriptionError, match="mesh look: look.stl is over the size limit"):
+        load_hand(path, spheres=False, max_file_bytes=limit)
 
 
 @pytest.mark.parametrize("change, outcome", [

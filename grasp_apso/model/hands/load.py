@@ -94,7 +94,7 @@ def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: 
     if kind == "MJCF":
         from .mjcf_loader import read_mjcf
 
-        raw = read_mjcf(path)
+        raw = read_mjcf(path, limit)
     else:
         from .urdf_loader import read_urdf
 

@@ -42,7 +42,7 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _compile(path: Path, notes: list[str]):
+def _compile(path: Path, notes: list[str], max_mesh_bytes: int):
     import mujoco
 
     try:
@@ -56,6 +56,9 @@ def _compile(path: Path, notes: list[str]):
             continue
         file = Path(mesh.file) if Path(mesh.file).is_absolute() else meshdir / mesh.file
         if file.is_file():
+            if file.stat().st_size > max_mesh_bytes:
+                raise HandDescriptionError(f"mesh {mesh.name}: {file.name} is over the size limit "
+                                           f"({file.stat().st_size} > {max_mesh_bytes} bytes)", field=mesh.name)
             continue
         users = [g for g in spec.geoms if g.meshname == mesh.name]
         colliding = [g for g in users if g.contype or g.conaffinity]
@@ -114,12 +117,13 @@ def _subtree_sizes(model, top_children) -> dict[int, int]:
     return counts
 
 
-def read_mjcf(path: Path) -> RawHand:
-    """The RawHand of an MJCF file (compiled by MuJoCo)."""
+def read_mjcf(path: Path, max_mesh_bytes: int) -> RawHand:
+    """The RawHand of an MJCF file (compiled by MuJoCo); mesh files over
+    ``max_mesh_bytes`` are refused."""
     import mujoco
 
     notes: list[str] = []
-    model = _compile(path, notes)
+    model = _compile(path, notes, max_mesh_bytes)
     OBJ, JNT = mujoco.mjtObj, mujoco.mjtJoint
     tops = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not tops:
