@@ -201,46 +201,7 @@ def derive_fingers(hand, tips: list[str], overrides: dict) -> tuple[list[FingerS
     velocity = (pts[1:] - pts[0]) / eps          # (n, F, 3): d tip / d q_j
     tip0 = pts[0]                                # (F, 3)
 
-    info = []
-    for f, tip in enumerate(tips):
-        chain = set(hand.chain(tip))
-        chain_motions = [m for i, ms in enumerate(hand.motions) if hand.links[i] in chain for m in ms]
-        moving = {m.joint for m in chain_motions}
-        joints = [a for a in hand.actuated_joints if _moves_chain(hand, a, moving)]
-        last = chain_motions[-1]
-        last_link = next(i for i, ms in enumerate(hand.motions) if last in ms)
-        R_last = poses0[last_link][:3, :3]
-        axis_f = R_last @ np.asarray(last.axis)
-        curl, kinds, rng_vote = np.zeros(3), [], 0.0
-        for a in joints:
-            k = hand.actuated_joints.index(a)
-            v = velocity[k, f]
-            motion = _own_motion(hand, a, moving)
-            if np.linalg.norm(v) < 1e-6:
-                kinds.append(("pre", 0.0))
-                continue
-            if motion is not None and motion[0].kind == "revolute":
-                ax = poses0[motion[1]][:3, :3] @ np.asarray(motion[0].axis)
-                c = float(np.dot(ax, axis_f))
-                if abs(c) < _SIDEWAYS_COS:
-                    kinds.append(("pre", 0.0))
-                    continue
-                sense = 1.0 if c > 0 else -1.0
-            else:
-                if abs(float(np.dot(_unit(v), axis_f))) > _SIDEWAYS_COS:
-                    kinds.append(("pre", 0.0))
-                    continue
-                sense = 1.0 if float(np.dot(np.cross(axis_f, tip0[f] - poses0[last_link][:3, 3]), v)) >= 0 else -1.0
-            kinds.append(("flex", sense))
-            curl += sense * v
-            rng_vote += sense * ((hand.upper[k] - q0[k]) - (q0[k] - hand.lower[k]))
-        sigma = 1.0 if rng_vote >= 0 else -1.0
-        below = hand.chain(tip)[hand.chain(tip).index(hand.root_link) + 1:]
-        first = next(hand.link_index(n) for n in below if hand.motions[hand.link_index(n)])
-        m0 = hand.motions[first][0]
-        base = poses0[first][:3, :3] @ np.asarray(m0.anchor) + poses0[first][:3, 3]
-        info.append({"tip": tip, "joints": joints, "kinds": kinds, "curl": curl, "sigma": sigma, "base": base,
-                     "axis": axis_f, "last_link": last_link, "vote": rng_vote})
+    info = [_finger_info(hand, tip, velocity[:, f], tip0[f], poses0, q0) for f, tip in enumerate(tips)]
 
     def closing_dirs():
         return [_unit(i["sigma"] * i["curl"]) for i in info]
@@ -281,13 +242,60 @@ def derive_fingers(hand, tips: list[str], overrides: dict) -> tuple[list[FingerS
             value = 0 if kind == "pre" else int(i["sigma"] * sense)
             closing.append(int(closing_override.get(a, value)))
         T = poses0[hand.link_index(i["tip"])]
-        last_T = poses0[i["last_link"]]
-        anchor = last_T[:3, 3]
+        anchor = i["anchor"]
         palmar_root = _unit(i["sigma"] * np.cross(i["axis"], tip0[f] - anchor)) if np.linalg.norm(i["curl"]) else normal
         distal_root = _unit(tip0[f] - anchor)
         out.append(FingerSemantics(i["tip"], tuple(i["joints"]), tuple(closing),
                                    T[:3, :3].T @ palmar_root, T[:3, :3].T @ distal_root, f == thumb_f))
     return out, np.asarray(normal, float), notes
+
+
+def _finger_info(hand, tip: str, velocity: np.ndarray, tip0: np.ndarray, poses0: np.ndarray,
+                 q0: np.ndarray) -> dict:
+    """One finger at the reference posture: its actuated joints, each joint's kind
+    ("flex" with its curl sense about the flexion axis, or "pre"), the tip's curl velocity,
+    the closing sense the ranges vote for, the flexion axis and the finger's base point.
+
+    velocity : (n, 3) d tip / d q per actuated joint; tip0 : (3,) the tip; poses0 :
+    (L, 4, 4) link poses; all in the root frame.
+    """
+    chain = hand.chain(tip)
+    chain_motions = [m for i, ms in enumerate(hand.motions) if hand.links[i] in set(chain) for m in ms]
+    moving = {m.joint for m in chain_motions}
+    joints = [a for a in hand.actuated_joints if _moves_chain(hand, a, moving)]
+    last = chain_motions[-1]
+    last_link = next(i for i, ms in enumerate(hand.motions) if last in ms)
+    R_last = poses0[last_link][:3, :3]
+    axis_f = R_last @ np.asarray(last.axis)
+    anchor = R_last @ np.asarray(last.anchor) + poses0[last_link][:3, 3]
+    curl, kinds, vote = np.zeros(3), [], 0.0
+    for a in joints:
+        k = hand.actuated_joints.index(a)
+        v = velocity[k]
+        motion = _own_motion(hand, a, moving)
+        if np.linalg.norm(v) < 1e-6:
+            kinds.append(("pre", 0.0))
+            continue
+        if motion is not None and motion[0].kind == "revolute":
+            c = float(np.dot(poses0[motion[1]][:3, :3] @ np.asarray(motion[0].axis), axis_f))
+            if abs(c) < _SIDEWAYS_COS:  # turns the tip sideways: abduction, thumb rotation
+                kinds.append(("pre", 0.0))
+                continue
+            sense = 1.0 if c > 0 else -1.0
+        else:
+            if abs(float(np.dot(_unit(v), axis_f))) > _SIDEWAYS_COS:
+                kinds.append(("pre", 0.0))
+                continue
+            sense = 1.0 if float(np.dot(np.cross(axis_f, tip0 - anchor), v)) >= 0 else -1.0
+        kinds.append(("flex", sense))
+        curl += sense * v
+        vote += sense * ((hand.upper[k] - q0[k]) - (q0[k] - hand.lower[k]))
+    below = chain[chain.index(hand.root_link) + 1:]
+    first = next(hand.link_index(name) for name in below if hand.motions[hand.link_index(name)])
+    m0 = hand.motions[first][0]
+    base = poses0[first][:3, :3] @ np.asarray(m0.anchor) + poses0[first][:3, 3]
+    return {"tip": tip, "joints": joints, "kinds": kinds, "curl": curl, "sigma": 1.0 if vote >= 0 else -1.0,
+            "base": base, "axis": axis_f, "anchor": anchor, "last_link": last_link, "vote": vote}
 
 
 def _moves_chain(hand, joint: str, moving: set[str]) -> bool:
