@@ -13,6 +13,9 @@ curl in profile). Each panel shows
 - the palm normal as an arrow from the root link's origin;
 - a metric scale bar and the root frame's axes.
 
+Links above the root (an arm, a forearm) are left out; the title counts the spheres of
+the links drawn.
+
 The title names the hand, its fingers (and which is the thumb) and the number of spheres
 with their largest stray. Built without pyplot (Agg canvas), like
 :mod:`grasp_apso.tools.plotting`. Uses only the general hand model's public attributes
@@ -22,6 +25,7 @@ with their largest stray. Built without pyplot (Agg canvas), like
 from __future__ import annotations
 
 import os
+import re
 from typing import Any
 
 import numpy as np
@@ -39,8 +43,11 @@ from .view3d import (decimate_for_drawing, framing, nice_length, save, scale_bar
 __all__ = ["draw_hand", "finger_color", "EXTRA_FINGER_COLORS"]
 
 MM = 1000.0
-#: Colours of fingers whose names the palette does not know (Okabe-Ito, then greys).
-EXTRA_FINGER_COLORS = ("#56B4E9", "#F0E442", "#000000", "#7F7F7F", "#B07AA1")
+#: Colours of fingers whose names the palette does not know (Okabe-Ito, then others).
+EXTRA_FINGER_COLORS = ("#56B4E9", "#F0E442", "#8C564B", "#17BECF", "#B07AA1")
+#: Other names of the palette's fingers (the Shadow hand's ff, mf, rf, lf, th; pinky).
+_ALIASES = {"ff": "index", "first": "index", "mf": "middle", "rf": "ring", "lf": "little", "pinky": "little",
+            "th": "thumb"}
 GEOMETRY_COLOR = "#B4B4B4"
 #: Triangles drawn per link's exact geometry at most (decimated beyond).
 _LINK_TRIANGLES = 600
@@ -58,6 +65,9 @@ def finger_color(name: str, index: int) -> str:
     for known, color in FINGER_COLORS.items():
         if known in key:
             return color
+    for token in re.split(r"[^a-z]+", key):
+        if token in _ALIASES:
+            return FINGER_COLORS[_ALIASES[token]]
     return EXTRA_FINGER_COLORS[index % len(EXTRA_FINGER_COLORS)]
 
 
@@ -92,6 +102,13 @@ def _unit_sphere(level: int) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
+def _in_hand(hand: Any, link: str) -> bool:
+    """Whether ``link`` is the root or below it (an arm or forearm above the palm is left
+    out of the picture: it would dwarf the fingers)."""
+    chain = getattr(hand, "chain", None)
+    return chain is None or hand.root_link in chain(link)
+
+
 class _Scene:
     """The triangles to draw for one posture, root frame, mm."""
 
@@ -101,6 +118,8 @@ class _Scene:
         geometry, spheres_by_color = [], {}
         unit_v, unit_f = _unit_sphere(sphere_level)
         for link, geoms in hand.collision.items():
+            if not _in_hand(hand, link):
+                continue
             pose = poses[link]
             for geom in geoms:
                 mesh = geom.to_trimesh()
@@ -179,11 +198,14 @@ def _draw_panel(ax, scene: _Scene, hand: Any, direction: np.ndarray, up: np.ndar
         setter(c - half, c + half)
     ax.set_axis_off()
     ax.set_title(title, fontsize=11)
-    return ax, pts, right_s, []
+    # Zoomed to fill the panel with these points: 12 % more than the content leaves a
+    # margin under the panel's title.
+    middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    return ax, middle + 1.12 * (pts - middle), right_s, []
 
 
 def _title(hand: Any) -> str:
-    covers = list(hand.spheres.values())
+    covers = [c for link, c in hand.spheres.items() if _in_hand(hand, link)]
     count = sum(len(c.radii) for c in covers)
     stray = max((c.max_stray for c in covers), default=0.0)
     uncovered = max((c.uncovered for c in covers), default=0.0)
@@ -192,7 +214,7 @@ def _title(hand: Any) -> str:
     capsules = sum(int(np.any(np.asarray(getattr(c, "ends", c.centers)) != np.asarray(c.centers), axis=1).sum())
                    for c in covers)
     kinds = f"spheres and capsules ({capsules} capsules)" if capsules else "spheres"
-    line2 = f"{count} collision {kinds} over {len(covers)} links, largest stray {stray * MM:.2f} mm"
+    line2 = f"{count} collision {kinds} over the {len(covers)} links below the root, largest stray {stray * MM:.2f} mm"
     if uncovered > 0:
         line2 += f", up to {uncovered:.1%} of a link's surface uncovered"
     return line1 + "\n" + line2

@@ -158,7 +158,8 @@ class LinkGeometry:
     def _mesh_distance(self) -> tuple[MeshDistance, ...]:
         """One exact distance per closed component (a collision mesh is often several
         overlapping shells: the solid is their union; flat shells have no inside)."""
-        parts = [part for part in self.mesh.split(only_watertight=False) if abs(part.volume) > _FLAT_VOLUME]
+        with np.errstate(invalid="ignore", divide="ignore"):  # a flat shell's centre of mass is 0 / 0
+            parts = [part for part in self.mesh.split(only_watertight=False) if abs(part.volume) > _FLAT_VOLUME]
         for part in parts:
             if part.volume < 0:  # an inner shell facing inward: its solid counts too
                 part.invert()
