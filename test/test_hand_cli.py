@@ -49,7 +49,7 @@ def test_json_output_and_picture(capsys, tmp_path):
 
 def test_hand_config_on_the_command_line(capsys, allegro, tmp_path):
     cfg = tmp_path / "allegro.yaml"
-    cfg.write_text("thumb: index\nclosing: {index_joint_0: -1}\nmax_spheres: 4\n")
+    cfg.write_text("thumb: index\nclosing: {index_joint_0: -1}\nmax_spheres: 4\ncapsules: true\n")
     assert main([str(allegro), "--hand-config", str(cfg), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     index = data["fingers"][0]

@@ -154,6 +154,9 @@ def test_the_config_can_name_the_root_and_hold_joints(tmp_path):
     ({"fingers": {"a": "index_tip", "b": "nowhere"}}, "hand_config.fingers"),
     ({"fingers": {"a": "index_tip", "b": "palm"}}, "hand_config.fingers"),
     ({"hold": {"index_joint_1": 0.1}}, "hand_config.hold"),
+    ({"capsules": 1}, "hand_config.capsules"),
+    ({"max_spheres": 0}, "hand_config.max_spheres"),
+    ({"sphere_tolerance": 0.5}, "hand_config.sphere_tolerance"),
 ])
 def test_a_bad_config_is_refused_naming_the_key(allegro_file, config, field):
     with pytest.raises(HandDescriptionError) as info:

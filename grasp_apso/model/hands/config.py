@@ -12,6 +12,7 @@ Keys (all optional)::
     pads: {index: {link: ffdistal, center: [0, -0.007, 0.02], radius: 0.008}}
     sphere_tolerance: 0.002         # m, how far spheres may stray outside the geometry
     max_spheres: 24                 # per link
+    capsules: false                 # also cover with capsules (fewer elements, slower to build)
 
 Every value is checked; a bad one raises HandDescriptionError naming ``hand_config.<key>``.
 """
@@ -31,7 +32,7 @@ from ...errors import HandDescriptionError
 __all__ = ["HandConfig", "read_config"]
 
 _KEYS = ("root_link", "hold", "fingers", "thumb", "closing", "palm_normal", "pads", "sphere_tolerance",
-         "max_spheres")
+         "max_spheres", "capsules")
 
 
 def _bad(key: str, why: str) -> HandDescriptionError:
@@ -96,6 +97,10 @@ def read_config(config: str | Path | dict | None) -> HandConfig:
             if not 0.0002 <= t <= 0.01:
                 raise _bad(key, f"{t} outside [0.0002, 0.01] m")
             out[key] = t
+        elif key == "capsules":
+            if not isinstance(value, bool):
+                raise _bad(key, f"expected true or false, got {value!r}")
+            out[key] = value
         elif key == "max_spheres":
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 256:
                 raise _bad(key, "expected an integer in [1, 256]")

@@ -219,5 +219,7 @@ def _spheres(hand: HandModel, cfg: HandConfig) -> dict:
 
     tolerance = cfg.get("sphere_tolerance", 0.002)
     kwargs = {"max_spheres": cfg["max_spheres"]} if "max_spheres" in cfg else {}
+    if cfg.get("capsules"):
+        kwargs["capsules"] = True
     return {link: cover_link(geoms, tolerance, np.random.default_rng(_SEED), **kwargs)
             for link, geoms in hand.collision.items()}
