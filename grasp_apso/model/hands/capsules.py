@@ -18,7 +18,7 @@ import numpy as np
 
 from .geometry import LinkGeometry
 
-__all__ = ["capsule_candidates", "segment_distances", "principal_axes"]
+__all__ = ["capsule_candidates", "principal_axes"]
 
 #: Centres swept at most, the step (tolerances) and the most steps each way, the depth a
 #: sweep may lose (tolerances), and the depth (tolerances) below which a centre is shallow.
@@ -31,14 +31,6 @@ _SHALLOW = 2.0
 _SHALLOW_CELL = 1.0
 _DEEP_CELL = 3.0
 _CHUNK = 8
-
-
-def segment_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points to segments, row by row: (N, 3) x (N, 3) x (N, 3) -> (N,), m."""
-    ab = b - a
-    length2 = np.einsum("ij,ij->i", ab, ab)
-    t = np.clip(np.einsum("ij,ij->i", points - a, ab) / np.maximum(length2, 1e-30), 0.0, 1.0)
-    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
 
 
 def principal_axes(geoms: Sequence[LinkGeometry], points: np.ndarray) -> np.ndarray:
