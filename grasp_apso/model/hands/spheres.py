@@ -238,6 +238,27 @@ def _greedy(cover: sparse.csr_matrix, chosen: list[int], limit: int) -> np.ndarr
     return uncovered
 
 
+def _pruned(chosen: list[int], cover: sparse.csr_matrix, geoms, centers, ends, radii, spacing: float,
+            tolerance: float, rng: np.random.Generator) -> tuple[list[int], float]:
+    """Drop the chosen elements whose samples all stay covered by the others (greedy picks
+    early what later picks make redundant), the smallest first; kept only if a fresh
+    check finds the surface still covered. Returns (chosen, uncovered fraction)."""
+    rows = cover[chosen]
+    depth = np.asarray(rows.sum(axis=0)).ravel()
+    keep = np.ones(len(chosen), dtype=bool)
+    for j in np.argsort(np.diff(rows.indptr), kind="stable"):
+        cols = rows.indices[rows.indptr[j]:rows.indptr[j + 1]]
+        if len(cols) and depth[cols].min() >= 2:
+            keep[j] = False
+            depth[cols] -= 1
+    if keep.all():
+        return chosen, 0.0
+    pruned = [c for c, k in zip(chosen, keep) if k]
+    check, _ = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng, _CHECK_FACTOR * _MAX_SAMPLES)
+    inside = SphereCover(centers[pruned], radii[pruned], 0.0, 0.0, tolerance, ends[pruned]).contains(check)
+    return (pruned, 0.0) if inside.all() else (chosen, 0.0)
+
+
 def _fibonacci_sphere(count: int) -> np.ndarray:
     """(count, 3) unit vectors spread evenly over the sphere."""
     i = np.arange(count) + 0.5
@@ -352,6 +373,8 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
         radii = np.concatenate([radii, extra_r])
         groups.append(missed)
         margins.append(_REPAIR_MARGIN * tolerance)
+    if uncovered == 0.0:
+        chosen, uncovered = _pruned(chosen, cover, geoms, centers, ends, radii, spacing, tolerance, rng)
     centers, ends, radii = centers[chosen], ends[chosen], radii[chosen]
     stray = measure_stray(geoms, centers, radii, rng, ends=ends)
     return SphereCover(centers, radii, stray, uncovered, tolerance, ends)
