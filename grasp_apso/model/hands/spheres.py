@@ -48,6 +48,8 @@ MAX_SPHERES = 256
 #: primitives (up to 0.12 % of the radius inside the true surface) with trimesh's
 #: approximate closest points (up to 0.08 mm too far on a capsule).
 _STRAY_MARGIN = 1e-4
+#: Faces meeting at more than this (rad) make a sharp edge, sampled along its length.
+_SHARP = 0.35
 #: Surface samples for the cover: spacing as a fraction of the tolerance, and at most so many.
 _SPACING = 0.5
 _MAX_SAMPLES = 5000
@@ -63,11 +65,13 @@ _MEDIAL_STRIDE = 2
 _MEDIAL_STEPS = 9
 #: The checking sample: this many times denser than the cover's, rounds of repair.
 _CHECK_FACTOR = 6
+_CHECK_SPACING = 6e-4
+_MAX_CHECK = 120_000
 _REPAIR_ROUNDS = 6
 #: The margin (in tolerances) by which a missed point must lie inside its new sphere.
 _REPAIR_MARGIN = 0.25
 #: How far inside a sphere (in tolerances) a checking point must lie to count as covered.
-_CHECK_MARGIN = 0.05
+_CHECK_MARGIN = 0.1
 #: Points per sphere for the measured stray.
 _STRAY_POINTS = 64
 
@@ -144,11 +148,13 @@ def union_signed_distance(geoms: Sequence[LinkGeometry], points: np.ndarray) -> 
 
 
 def surface_samples(geoms: Sequence[LinkGeometry], spacing: float, rng: np.random.Generator,
-                    max_count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    max_count: int | None = None, edges: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Area-weighted random samples of every geometry's surface and their outward normals.
 
     About one sample per ``spacing`` squared of area (at most ``max_count`` in all, at
-    least 50 per geometry).
+    least 50 per geometry). ``edges``: also points every half ``spacing`` along the sharp
+    edges (and at the corners), where a cover is thinnest and area samples rarely land;
+    their normals bisect the two faces'.
     Returns (points (N, 3), normals (N, 3)), link frame.
     """
     meshes = [g.to_trimesh() for g in geoms]
@@ -161,7 +167,31 @@ def surface_samples(geoms: Sequence[LinkGeometry], spacing: float, rng: np.rando
         p, face = trimesh.sample.sample_surface(mesh, max(50, int(count)), seed=rng)
         points.append(np.asarray(p))
         normals.append(np.asarray(mesh.face_normals)[face])
+        if edges:
+            edge_points, edge_normals = _edge_samples(mesh, 0.5 * spacing, rng)
+            points.append(edge_points)
+            normals.append(edge_normals)
     return np.vstack(points), np.vstack(normals)
+
+
+def _edge_samples(mesh: trimesh.Trimesh, spacing: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Points along the mesh's sharp edges (faces meeting at more than ``_SHARP``), a
+    seeded random offset then every ``spacing``, both ends included; bisector normals."""
+    sharp = np.asarray(mesh.face_adjacency_angles) > _SHARP
+    if not sharp.any():
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    ends = np.asarray(mesh.vertices)[np.asarray(mesh.face_adjacency_edges)[sharp]]  # (E, 2, 3)
+    pair = np.asarray(mesh.face_adjacency)[sharp]
+    bisector = np.asarray(mesh.face_normals)[pair].sum(axis=1)
+    bisector /= np.maximum(np.linalg.norm(bisector, axis=1, keepdims=True), 1e-12)
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    count = np.ceil(length / spacing).astype(np.int64) + 1
+    edge = np.repeat(np.arange(len(ends)), count)
+    start = np.repeat(np.cumsum(count) - count, count)
+    step = (np.arange(len(edge)) - start).astype(float)
+    t = np.clip((step + rng.random(len(edge)) * (step > 0) * (step < count[edge] - 1)) / (count[edge] - 1), 0.0, 1.0)
+    points = ends[edge, 0] + t[:, None] * (ends[edge, 1] - ends[edge, 0])
+    return points, bisector[edge]
 
 
 def _medial_offsets(geoms: Sequence[LinkGeometry], seeds: np.ndarray, inward: np.ndarray,
@@ -238,6 +268,15 @@ def _greedy(cover: sparse.csr_matrix, chosen: list[int], limit: int) -> np.ndarr
     return uncovered
 
 
+def _check_samples(geoms, spacing: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A fresh checking sample: ``_CHECK_FACTOR`` times denser than the cover's, and at
+    least one per ``_CHECK_SPACING`` squared (large links), at most ``_MAX_CHECK``; the
+    sharp edges included."""
+    area = sum(g.to_trimesh().area for g in geoms)
+    count = min(max(_CHECK_FACTOR * area / spacing**2, area / _CHECK_SPACING**2), _MAX_CHECK)
+    return surface_samples(geoms, float(np.sqrt(area / count)), rng, edges=True)
+
+
 def _pruned(chosen: list[int], cover: sparse.csr_matrix, geoms, centers, ends, radii, spacing: float,
             tolerance: float, rng: np.random.Generator) -> tuple[list[int], float]:
     """Drop the chosen elements whose samples all stay covered by the others (greedy picks
@@ -254,7 +293,7 @@ def _pruned(chosen: list[int], cover: sparse.csr_matrix, geoms, centers, ends, r
     if keep.all():
         return chosen, 0.0
     pruned = [c for c, k in zip(chosen, keep) if k]
-    check, _ = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng, _CHECK_FACTOR * _MAX_SAMPLES)
+    check, _ = _check_samples(geoms, spacing, rng)
     inside = SphereCover(centers[pruned], radii[pruned], 0.0, 0.0, tolerance, ends[pruned]).contains(check)
     return (pruned, 0.0) if inside.all() else (chosen, 0.0)
 
@@ -323,9 +362,9 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
     """
     geoms, tolerance, rng, max_spheres = _check(geoms, tolerance, rng, max_spheres)
     spacing = _SPACING * tolerance
-    points, normals = surface_samples(geoms, spacing, rng, _MAX_SAMPLES)
     area = sum(g.to_trimesh().area for g in geoms)
-    spacing = max(spacing, float(np.sqrt(area / len(points))))
+    spacing = max(spacing, float(np.sqrt(area / _MAX_SAMPLES)))
+    points, normals = surface_samples(geoms, spacing, rng, _MAX_SAMPLES, edges=True)
     centers, radii = _candidates(geoms, points, normals, tolerance)
     ends = centers
     if capsules:
@@ -348,14 +387,12 @@ def cover_link(geoms: Sequence[LinkGeometry], tolerance: float = MAX_STRAY,
         # A fresh, denser sample checks the cover; it is independent of the spheres chosen.
         # Points less than _CHECK_MARGIN inside every sphere count as missed: slivers are
         # thin, their neighbourhoods are not, so a check this strict finds nearly all.
-        check, check_normals = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng,
-                                               _CHECK_FACTOR * _MAX_SAMPLES)
+        check, check_normals = _check_samples(geoms, spacing, rng)
         inside = SphereCover(centers[chosen], radii[chosen] - _CHECK_MARGIN * tolerance, 0.0, 0.0,
                              tolerance, ends[chosen]).contains(check)
         if inside.all():
             # The report's sample: another fresh one, no margin; any miss is repaired too.
-            check, check_normals = surface_samples(geoms, spacing / np.sqrt(_CHECK_FACTOR), rng,
-                                                   _CHECK_FACTOR * _MAX_SAMPLES)
+            check, check_normals = _check_samples(geoms, spacing, rng)
             inside = SphereCover(centers[chosen], radii[chosen], 0.0, 0.0, tolerance, ends[chosen]).contains(check)
             uncovered = float(1.0 - inside.mean())
             if inside.all():
