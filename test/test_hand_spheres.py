@@ -6,11 +6,11 @@ Checked independently of the code under test: coverage on surface samples drawn 
 points on every sphere's surface; mesh distances against a brute-force loop over all
 triangles and trimesh's ray-parity ``contains``; pads against the analytic surface.
 
-Sphere counts with a 2 mm stray (seed 0, measured when written): box 20 x 27 x 54 mm 178,
-sphere r 10 mm 1, cylinder r 8 x 40 mm 36, capsule r 8 + 40 mm 6, L-shaped mesh 130, a
-palm-sized box 100 x 90 x 20 mm more than 256. A box needs many: its edges and corners
-are covered only by spheres centred within a few millimetres of them. With capsules
-offered too: box 32, L-shaped mesh 35, palm-sized box 95, capsule 1.
+Counts with a 2 mm stray (seed 0, random placement, measured when written): spheres only:
+box 20 x 27 x 54 mm 169, sphere r 10 mm 1, cylinder r 8 x 40 mm 33, capsule r 8 + 40 mm
+6, L-shaped mesh 141, a palm-sized box 100 x 90 x 20 mm more than 256. A box needs many:
+its edges and corners are covered only by spheres centred within a few millimetres of
+them. With capsules offered too: box 32, L-shaped mesh 32, palm-sized box 77, capsule 1.
 """
 
 from __future__ import annotations
