@@ -171,7 +171,7 @@ def test_capsules_cover_with_far_fewer_elements(shape):
 def test_a_palm_sized_box_needs_capsules():
     """100 x 90 x 20 mm: spheres alone run out at 256 with part of the surface uncovered."""
     palm = [LinkGeometry("box", (0.05, 0.045, 0.01), PLACEMENTS["placed"])]
-    spheres = cover_link(palm)
+    spheres = cover_link(palm, max_spheres=256)
     assert spheres.count == 256 and spheres.uncovered > 0.01
     cover = cover_link(palm, capsules=True)
     assert cover.uncovered == 0.0 and cover.count <= 120

@@ -102,8 +102,8 @@ def read_config(config: str | Path | dict | None) -> HandConfig:
                 raise _bad(key, f"expected true or false, got {value!r}")
             out[key] = value
         elif key == "max_spheres":
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 256:
-                raise _bad(key, "expected an integer in [1, 256]")
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 8192:
+                raise _bad(key, "expected an integer in [1, 8192]")
             out[key] = value
     return out
 

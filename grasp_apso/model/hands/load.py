@@ -215,11 +215,13 @@ def _finger(hand: HandModel, label: str, sem, cfg: HandConfig) -> Finger:
 
 
 def _spheres(hand: HandModel, cfg: HandConfig) -> dict:
+    from .cover_store import covers_from_disk
     from .spheres import cover_link
 
     tolerance = cfg.get("sphere_tolerance", 0.002)
     kwargs = {"max_spheres": cfg["max_spheres"]} if "max_spheres" in cfg else {}
     if cfg.get("capsules"):
         kwargs["capsules"] = True
-    return {link: cover_link(geoms, tolerance, np.random.default_rng(_SEED), **kwargs)
-            for link, geoms in hand.collision.items()}
+    settings = {"tolerance": float(tolerance), "seed": _SEED, **kwargs}
+    return covers_from_disk(hand.collision, settings, lambda link: cover_link(
+        hand.collision[link], tolerance, np.random.default_rng(_SEED), **kwargs))
