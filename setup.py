@@ -47,6 +47,7 @@ setup(
             'grasp_apso_plan = grasp_apso.tools.cli:main',
             'grasp_apso_urdf = grasp_apso.tools.urdf_cli:main',
             'grasp_apso_batch = grasp_apso.tools.batch_cli:main',
+            'grasp_apso_hand = grasp_apso.tools.hand_cli:main',
         ],
     },
 )

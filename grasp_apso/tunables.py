@@ -177,8 +177,15 @@ TUNABLES: tuple[Tunable, ...] = (
        "a request never waits for it past its own time bound (its candidates are then not simulated).",
        0.0, 3600.0, lo_open=True, unit="s", scope="simulation"),
     # --- node: resources and security ----------------------------------------------
-    _t("hand_description", str, "", "Path of the hand description YAML; empty = the hand shipped "
-       "in the package.", scope="node", read_only=True),
+    _t("hand_description", str, "", "Path of the hand description: a URDF (.urdf), MJCF (.xml) or the "
+       "project's YAML (.yaml); empty = the paper's hand shipped in the package. Checked at start-up "
+       "(the planner keeps planning with the paper's hand until issue 20 part 2).",
+       scope="node", read_only=True),
+    _t("hand_config", str, "", "Path of a YAML file overriding what is derived from the hand "
+       "description (root link, fingers, thumb, closing senses, palm normal, pads); empty = none.",
+       scope="node", read_only=True),
+    _t("max_hand_file_bytes", int, 20_000_000, "Largest accepted hand description file and collision "
+       "mesh file.", 1, 2_000_000_000, unit="bytes", scope="node", ros=False),
     _t("allowed_mesh_dir", str, "", "Directory mesh_uri files must lie in (symlinks and '..' "
        "resolved); empty = mesh files are refused.", scope="node", read_only=True),
     _t("max_mesh_triangles", int, 200_000, "Largest accepted mesh (inline or file), triangles.",

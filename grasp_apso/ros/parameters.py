@@ -3,7 +3,7 @@
 - :func:`descriptor`: a ``ParameterDescriptor`` per :class:`~grasp_apso.tunables.Tunable`
   (type, description, range, constraints; ``read_only`` for the security and resource
   limits: ``allowed_mesh_dir``, ``max_mesh_triangles``, ``max_mesh_bytes``,
-  ``hand_description``, ``queue_length``, ``workers``, ``grasp_database``).
+  ``hand_description``, ``hand_config``, ``queue_length``, ``workers``, ``grasp_database``).
 - :class:`NodeParameters`: declares them on a node, checks the start-up values with
   :meth:`Tunable.check <grasp_apso.tunables.Tunable.check>` (a bad value stops the node
   with a message naming the parameter), loads the hand description and opens the grasp
@@ -92,6 +92,33 @@ def _options(values: Mapping[str, Any]) -> PlanOptions:
     return PlanOptions(**settings)
 
 
+def _startup_hand(description: str, config: str, node: Node) -> HandModel:
+    """The hand the planner uses, after checking ``hand_description`` and ``hand_config``
+    with the general loader (any URDF, MJCF or YAML; a bad one stops the node naming the
+    parameter). The planner plans with the paper's hand until issue 20 part 2: a URDF or
+    MJCF description is checked and reported, and the paper's hand is used."""
+    from ..model.hands.load import load_hand as load_any_hand
+
+    try:
+        general = load_any_hand(description or None, config or None, spheres=False)
+    except (GraspApsoError, ValueError) as exc:
+        text = str(exc)
+        name = "hand_config" if text.startswith("hand_config") else "hand_description"
+        if not text.startswith(name):
+            text = f"{name}: {text}"
+        raise HandDescriptionError(text, name) from None
+    try:
+        hand = load_hand(description if description.endswith((".yaml", ".yml")) else None)
+    except (GraspApsoError, ValueError) as exc:
+        raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
+    if description and not description.endswith((".yaml", ".yml")):
+        node.get_logger().warning(
+            f"hand_description: {general.name} loaded ({len(general.fingers)} fingers, "
+            f"{len(general.actuated_joints)} actuated joints); the planner plans with the paper's hand "
+            "until the general hand reaches it")
+    return hand
+
+
 class NodeParameters:
     """Declares the parameters on ``node`` and keeps the current :class:`Settings`.
 
@@ -118,12 +145,7 @@ class NodeParameters:
         allowed = str(values["allowed_mesh_dir"])
         if allowed and not os.path.isdir(allowed):
             raise InputError("allowed_mesh_dir: not a directory", "allowed_mesh_dir")
-        try:
-            hand = load_hand(str(values["hand_description"]) or None)
-        except GraspApsoError as exc:
-            raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
-        except ValueError as exc:
-            raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
+        hand = _startup_hand(str(values["hand_description"]), str(values["hand_config"]), node)
         self._hand = hand
         self.database = open_database(str(values["grasp_database"]), hand)
         self._settings = Settings(MappingProxyType(dict(values)), _options(values), hand)

@@ -1,0 +1,207 @@
+"""``load_hand(path, config=None) -> HandModel``: any hand from its description file.
+
+``.urdf`` (yourdfpy), ``.xml`` (MJCF, MuJoCo's compiler), ``.yaml``/``.yml`` (the project's
+own description: the paper's hand, turned into its URDF in memory by
+:func:`grasp_apso.model.urdf.hand_to_urdf`, so the YAML and the generated URDF give the
+same model). ``None`` loads the paper's hand shipped in the package.
+
+Models are immutable and built once: cached (:class:`~grasp_apso.cache.BoundedCache`) by
+the sha256 of the file's content, its folder (relative meshes) and the config.
+Limits: the description file and each collision mesh at most the tunable
+``max_hand_file_bytes``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import replace
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+
+from ... import tunables
+from ...cache import BoundedCache, approximate_nbytes
+from ...errors import HandDescriptionError
+from .config import HandConfig, read_config
+from .derive import derive_fingers, find_root, finger_label, finger_tips
+from .description import RawHand, kinematics
+from .model import Finger, HandModel, readonly
+
+__all__ = ["load_hand", "hand_from_raw", "SUFFIXES"]
+
+SUFFIXES = {".urdf": "URDF", ".xml": "MJCF", ".yaml": "YAML", ".yml": "YAML"}
+def _hand_bytes(hand: HandModel) -> int:
+    """Approximate memory of a hand: its meshes and spheres dominate."""
+    return approximate_nbytes([dict(hand.collision), dict(hand.spheres), hand.origins])
+
+
+_CACHE: BoundedCache[HandModel] = BoundedCache(max_entries=16, max_bytes=1_000_000_000, size_of=_hand_bytes)
+#: Seed of the sphere covers (deterministic per hand).
+_SEED = 20
+
+
+def _read(path: Path, limit: int) -> bytes:
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise HandDescriptionError(f"hand_description: cannot read {path}: {exc.strerror}",
+                                   field="hand_description") from None
+    if size > limit:
+        raise HandDescriptionError(f"hand_description: {path.name} is {size} bytes, over the limit of {limit} "
+                                   "(tunable max_hand_file_bytes)", field="hand_description")
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise HandDescriptionError(f"hand_description: cannot read {path}: {exc.strerror}",
+                                   field="hand_description") from None
+
+
+def load_hand(path: str | Path | None = None, config: str | Path | dict | None = None,
+              spheres: bool = True, max_file_bytes: int | None = None) -> HandModel:
+    """Load a hand and derive its grasp semantics.
+
+    Parameters
+    ----------
+    path : .urdf, .xml (MJCF) or .yaml file; None = the paper's hand.
+    config : override config (YAML path or dict, see :mod:`.config`), optional.
+    spheres : cover every link with spheres (False: ``spheres`` is empty; quicker).
+    max_file_bytes : size limit of the file and each collision mesh (default: the
+        tunable ``max_hand_file_bytes``).
+
+    Raises
+    ------
+    HandDescriptionError
+        Naming the element at fault (file type, joint, link, mesh, config key).
+    """
+    from ..hand import default_hand_path
+
+    path = default_hand_path() if path is None or str(path) == "" else Path(path)
+    kind = SUFFIXES.get(path.suffix.lower())
+    if kind is None:
+        raise HandDescriptionError(f"hand_description: {path.name} is not a URDF (.urdf), MJCF (.xml) or "
+                                   "YAML (.yaml) file", field="hand_description")
+    limit = int(tunables.default("max_hand_file_bytes") if max_file_bytes is None else max_file_bytes)
+    content = _read(path, limit)
+    cfg = read_config(config)
+    source_hash = hashlib.sha256(content + b"\0" + cfg.canonical.encode()).hexdigest()
+    key = (source_hash, str(path.resolve().parent), bool(spheres), limit)
+    return _CACHE.get_or_create(key, lambda: _build(path, kind, content, cfg, source_hash, limit, spheres))
+
+
+def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: str, limit: int,
+           spheres: bool) -> HandModel:
+    if kind == "MJCF":
+        from .mjcf_loader import read_mjcf
+
+        raw = read_mjcf(path)
+    else:
+        from .urdf_loader import read_urdf
+
+        if kind == "YAML":
+            from ..hand import load_hand as load_paper_hand
+            from ..urdf import hand_to_urdf
+
+            text = hand_to_urdf(load_paper_hand(path))
+        else:
+            try:
+                text = content.decode("utf-8")
+            except UnicodeDecodeError:
+                raise HandDescriptionError(f"hand_description: {path.name} is not UTF-8 text",
+                                           field="hand_description") from None
+        raw = read_urdf(text, path.parent, limit, path.name)
+    return hand_from_raw(raw, cfg, source_hash, spheres)
+
+
+def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres: bool = True) -> HandModel:
+    """The HandModel of a loaded description, with the derivation and ``cfg`` applied."""
+    names = [link.name for link in raw.links]
+    root = cfg.get("root_link") or find_root(raw)
+    if root not in names:
+        raise HandDescriptionError(f"hand_config.root_link: {root!r} is not a link", field="hand_config.root_link")
+    above = set()
+    by_name = {link.name: link for link in raw.links}
+    link = by_name[root]
+    while link is not None:
+        above.update(j.name for j in link.joints)
+        link = by_name.get(link.parent) if link.parent is not None else None
+    for joint in cfg.get("hold", {}):
+        if joint not in above:
+            raise HandDescriptionError(f"hand_config.hold.{joint}: not a joint above the root link {root}",
+                                       field="hand_config.hold")
+    kin = kinematics(raw, above, cfg.get("hold", {}))
+    root_index = kin.links.index(root)
+    bare = HandModel(
+        name=raw.name, root_link=root, actuated_joints=kin.actuated, lower=kin.lower, upper=kin.upper,
+        fingers=(), palm_normal=readonly(np.zeros(3)), links=kin.links, link_parents=kin.parents,
+        collision=MappingProxyType({link.name: tuple(link.geoms) for link in raw.links if link.geoms}),
+        spheres=MappingProxyType({}), couplings=kin.couplings, held_joints=MappingProxyType(dict(kin.held)),
+        notes=(), source_hash=source_hash,
+        joint_names=kin.joint_names, origins=kin.origins, motions=kin.motions, full_matrix=kin.matrix,
+        full_offset=kin.offset, root_inverse=readonly(np.eye(4)))
+    top = bare.link_transforms_batch(np.zeros((1, len(kin.actuated))))[0]
+    bare = replace(bare, root_inverse=readonly(np.linalg.inv(top[root_index])))
+    tips, labels = _fingers(raw, root, cfg)
+    overrides = {"closing": cfg.get("closing", {}), "palm_normal": cfg.get("palm_normal")}
+    if "thumb" in cfg:
+        if cfg["thumb"] not in labels:
+            raise HandDescriptionError(f"hand_config.thumb: {cfg['thumb']!r} is not a finger ({', '.join(labels)})",
+                                       field="hand_config.thumb")
+        overrides["thumb"] = tips[labels.index(cfg["thumb"])]
+    for joint in overrides["closing"]:
+        if joint not in kin.actuated:
+            raise HandDescriptionError(f"hand_config.closing.{joint}: not an actuated joint",
+                                       field="hand_config.closing")
+    semantics, normal, notes = derive_fingers(bare, tips, overrides)
+    fingers = tuple(_finger(bare, label, sem, cfg) for label, sem in zip(labels, semantics))
+    covers = _spheres(bare, cfg) if spheres else {}
+    return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=MappingProxyType(covers),
+                   notes=tuple(raw.notes) + tuple(notes))
+
+
+def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[str]]:
+    names = [link.name for link in raw.links]
+    if "fingers" in cfg:
+        labels, tips = list(cfg["fingers"]), list(cfg["fingers"].values())
+        for label, tip in zip(labels, tips):
+            if tip not in names:
+                raise HandDescriptionError(f"hand_config.fingers.{label}: {tip!r} is not a link",
+                                           field="hand_config.fingers")
+    else:
+        tips = finger_tips(raw, root)
+        by_name = {link.name: link for link in raw.links}
+        firsts = []
+        for tip in tips:
+            link = by_name[tip]
+            while link.parent != root:
+                link = by_name[link.parent]
+            firsts.append(link.name)
+        labels = finger_label(tips, firsts)
+    if len(tips) < 2:
+        raise HandDescriptionError(f"hand_description: {len(tips)} finger(s) below {root}; a hand needs at least two",
+                                   field="hand_description")
+    return tips, labels
+
+
+def _finger(hand: HandModel, label: str, sem, cfg: HandConfig) -> Finger:
+    pad = cfg.get("pads", {}).get(label)
+    if pad is not None:
+        if pad["link"] not in hand.links:
+            raise HandDescriptionError(f"hand_config.pads.{label}.link: {pad['link']!r} is not a link",
+                                       field="hand_config.pads")
+        return Finger(label, sem.tip_link, sem.joints, sem.closing, pad["link"], readonly(pad["center"]),
+                      float(pad["radius"]), sem.is_thumb)
+    from .pads import find_pad
+
+    center, radius = find_pad(hand.collision[sem.tip_link], sem.palmar, sem.distal)
+    return Finger(label, sem.tip_link, sem.joints, sem.closing, sem.tip_link, readonly(center), float(radius),
+                  sem.is_thumb)
+
+
+def _spheres(hand: HandModel, cfg: HandConfig) -> dict:
+    from .spheres import cover_link
+
+    tolerance = cfg.get("sphere_tolerance", 0.002)
+    kwargs = {"max_spheres": cfg["max_spheres"]} if "max_spheres" in cfg else {}
+    return {link: cover_link(geoms, tolerance, np.random.default_rng(_SEED), **kwargs)
+            for link, geoms in hand.collision.items()}

@@ -1,0 +1,260 @@
+"""A hand from an MJCF file, compiled by MuJoCo's own compiler (includes, defaults,
+mesh directories resolved; meshes as MuJoCo places them).
+
+- Bodies become links (an unnamed body is ``body<id>``), hinge/slide joints their
+  motions in order (``qpos0`` is the reference of each). The hand is the world body's
+  child subtree with the most hinge and slide joints; other subtrees (tables, objects,
+  mocap bodies) are ignored, with a note. A free joint at the top of the hand is
+  ignored (the root pose is the planner's); a ball joint is refused.
+- Collision geometry: geoms that collide (``contype`` or ``conaffinity`` non-zero);
+  planes and height fields are not hand geometry. Ellipsoids become meshes.
+- Couplings: joint equalities (``polycoef``: the linear part; higher terms noted) and
+  fixed tendons over two joints whose length is held in a narrow range (a ``limited``
+  tendon, as the Shadow hand of gymnasium-robotics couples its distal joints) or by a
+  tendon equality. The follower is the joint without an actuator (else the distal one).
+- A visual mesh whose file is missing is dropped before compiling (with a note); a
+  missing collision mesh is an error naming it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ...errors import HandDescriptionError
+from .description import RawHand, RawJoint, RawLink, rigid
+from .geometry import LinkGeometry
+from .model import Coupling
+
+__all__ = ["read_mjcf"]
+
+#: A limited fixed tendon couples its two joints when its range is at most this
+#: fraction of the length span its joints' ranges allow.
+_NARROW_TENDON = 0.25
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _compile(path: Path, notes: list[str]):
+    import mujoco
+
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except Exception as exc:
+        raise HandDescriptionError(f"hand_description: {path.name} is not a valid MJCF file "
+                                   f"({str(exc).splitlines()[0][:200]})", field="hand_description") from None
+    meshdir = Path(spec.modelfiledir or path.parent) / (spec.meshdir or "")
+    for mesh in list(spec.meshes):
+        if not mesh.file:
+            continue
+        file = Path(mesh.file) if Path(mesh.file).is_absolute() else meshdir / mesh.file
+        if file.is_file():
+            continue
+        users = [g for g in spec.geoms if g.meshname == mesh.name]
+        colliding = [g for g in users if g.contype or g.conaffinity]
+        if colliding:
+            raise HandDescriptionError(f"geom {colliding[0].name or mesh.name}: collision mesh file {file} not found",
+                                       field=colliding[0].name or mesh.name)
+        for g in users:
+            spec.delete(g)
+        spec.delete(mesh)
+        notes.append(f"mesh {mesh.name}: file {file.name} missing, visual only: ignored")
+    try:
+        return spec.compile()
+    except Exception as exc:
+        raise HandDescriptionError(f"hand_description: MuJoCo cannot compile {path.name} "
+                                   f"({str(exc).splitlines()[0][:200]})", field="hand_description") from None
+
+
+def _name(mujoco, model, kind, i: int, prefix: str) -> str:
+    return mujoco.mj_id2name(model, kind, i) or f"{prefix}{i}"
+
+
+def _geom(mujoco, model, g: int, where: str) -> LinkGeometry | None:
+    t = model.geom_type[g]
+    size = model.geom_size[g]
+    origin = rigid(_quat_matrix(model.geom_quat[g]), model.geom_pos[g])
+    G = mujoco.mjtGeom
+    if t == G.mjGEOM_SPHERE:
+        return LinkGeometry("sphere", (size[0],), origin, None, where)
+    if t == G.mjGEOM_CAPSULE:
+        return LinkGeometry("capsule", (size[0], size[1]), origin, None, where)
+    if t == G.mjGEOM_CYLINDER:
+        return LinkGeometry("cylinder", (size[0], size[1]), origin, None, where)
+    if t == G.mjGEOM_BOX:
+        return LinkGeometry("box", tuple(size), origin, None, where)
+    if t == G.mjGEOM_ELLIPSOID:
+        mesh = trimesh.creation.icosphere(subdivisions=3)
+        mesh.apply_scale(size)
+        return LinkGeometry("mesh", (), origin, mesh, where + " (ellipsoid)")
+    if t == G.mjGEOM_MESH:
+        m = model.geom_dataid[g]
+        va, vn = model.mesh_vertadr[m], model.mesh_vertnum[m]
+        fa, fn = model.mesh_faceadr[m], model.mesh_facenum[m]
+        mesh = trimesh.Trimesh(model.mesh_vert[va:va + vn].copy(), model.mesh_face[fa:fa + fn].copy(), process=True)
+        return LinkGeometry("mesh", (), origin, mesh, where)
+    return None
+
+
+def _subtree_sizes(model, top_children) -> dict[int, int]:
+    counts = {}
+    for b in top_children:
+        members = {b}
+        for i in range(b + 1, model.nbody):
+            if model.body_parentid[i] in members:
+                members.add(i)
+        counts[b] = (members, sum(int(model.body_jntnum[i]) for i in members))
+    return counts
+
+
+def read_mjcf(path: Path) -> RawHand:
+    """The RawHand of an MJCF file (compiled by MuJoCo)."""
+    import mujoco
+
+    notes: list[str] = []
+    model = _compile(path, notes)
+    OBJ, JNT = mujoco.mjtObj, mujoco.mjtJoint
+    tops = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
+    if not tops:
+        raise HandDescriptionError(f"hand_description: {path.name} is not an MJCF hand (no bodies)", field="hand_description")
+    subtrees = _subtree_sizes(model, tops)
+    top = max(tops, key=lambda b: subtrees[b][1])
+    members = subtrees[top][0]
+    for b in tops:
+        if b != top:
+            notes.append(f"body {_name(mujoco, model, OBJ.mjOBJ_BODY, b, 'body')}: not part of the hand, ignored")
+    model_name = model.names[:model.names.index(b"\0")].decode()
+    # MuJoCo names a model without a name attribute "MuJoCo Model": the file's stem says more.
+    raw = RawHand(name=path.stem if model_name in ("", "MuJoCo Model") else model_name, links=[], notes=notes)
+    joint_names = {}
+    for b in sorted(members):
+        name = _name(mujoco, model, OBJ.mjOBJ_BODY, b, "body")
+        parent = None if b == top else _name(mujoco, model, OBJ.mjOBJ_BODY, model.body_parentid[b], "body")
+        origin = rigid(_quat_matrix(model.body_quat[b]), model.body_pos[b])
+        joints = []
+        for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
+            jname = _name(mujoco, model, OBJ.mjOBJ_JOINT, j, "joint")
+            joint_names[j] = jname
+            t = model.jnt_type[j]
+            if t == JNT.mjJNT_FREE:
+                if b != top:
+                    raise HandDescriptionError(f"joint {jname!r}: a free joint inside the hand", field=jname)
+                notes.append(f"joint {jname}: free joint of the hand's base, ignored")
+                continue
+            if t == JNT.mjJNT_BALL:
+                raise HandDescriptionError(f"joint {jname!r}: ball joints are not supported (hinge, slide)", field=jname)
+            kind = "prismatic" if t == JNT.mjJNT_SLIDE else "revolute"
+            limited = bool(model.jnt_limited[j])
+            lo, hi = (float(model.jnt_range[j, 0]), float(model.jnt_range[j, 1])) if limited else (None, None)
+            if not limited and kind == "revolute":
+                kind = "continuous"
+            qadr = model.jnt_qposadr[j]
+            joints.append(RawJoint(jname, kind, model.jnt_axis[j].copy(), model.jnt_pos[j].copy(), lo, hi,
+                                   float(model.qpos0[qadr]), source=f"{'hinge' if kind != 'prismatic' else 'slide'} "
+                                   "without range"))
+        geoms = []
+        for g in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
+            if model.body_geomadr[b] < 0:
+                break
+            if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+                continue
+            gname = _name(mujoco, model, OBJ.mjOBJ_GEOM, g, "geom")
+            lg = _geom(mujoco, model, g, f"body {name} geom {gname}")
+            if lg is not None:
+                geoms.append(lg)
+        raw.links.append(RawLink(name, parent, origin, joints, geoms))
+    qpos0 = {joint_names[j]: float(model.qpos0[model.jnt_qposadr[j]]) for j in joint_names}
+    actuated = {joint_names[model.actuator_trnid[a, 0]] for a in range(model.nu)
+                if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[a, 0] in joint_names}
+    raw.actuated_hint = actuated or None
+    depth = {name: i for i, name in enumerate(j for link in raw.links for j in (x.name for x in link.joints))}
+    _equalities(mujoco, model, raw, joint_names, qpos0, depth)
+    _tendons(mujoco, model, raw, joint_names, actuated, depth)
+    return raw
+
+
+def _equalities(mujoco, model, raw, joint_names, qpos0, depth) -> None:
+    EQ = mujoco.mjtEq
+    for e in range(model.neq):
+        if not model.eq_active0[e]:
+            continue
+        ename = _name(mujoco, model, mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
+        poly = model.eq_data[e, :5]
+        if model.eq_type[e] == EQ.mjEQ_JOINT:
+            a, b = model.eq_obj1id[e], model.eq_obj2id[e]
+            if a not in joint_names or (b >= 0 and b not in joint_names):
+                continue
+            if np.any(np.abs(poly[2:]) > 1e-12):
+                raw.notes.append(f"equality {ename}: polycoef beyond the linear term ignored")
+            follower = joint_names[a]
+            if b < 0:
+                raw.fixed_values[follower] = qpos0[follower] + float(poly[0])
+                continue
+            leader = joint_names[b]
+            # y - y0 = a0 + a1 (x - x0)
+            mult = float(poly[1])
+            raw.couplings.append(Coupling(follower, leader, mult,
+                                          qpos0[follower] + float(poly[0]) - mult * qpos0[leader],
+                                          f"equality {ename}"))
+        elif model.eq_type[e] == EQ.mjEQ_TENDON and model.eq_obj2id[e] < 0:
+            # L - L0 = a0: the tendon keeps its length at qpos0 (plus a0).
+            t = model.eq_obj1id[e]
+            _tendon_coupling(mujoco, model, raw, t, float(model.tendon_length0[t] + poly[0]), f"equality {ename}",
+                             joint_names, None, depth)
+
+
+def _tendons(mujoco, model, raw, joint_names, actuated, depth) -> None:
+    for t in range(model.ntendon):
+        if not model.tendon_limited[t]:
+            continue
+        lo, hi = model.tendon_range[t]
+        wraps = _joint_wraps(mujoco, model, t)
+        if wraps is None or len(wraps) != 2 or any(j not in joint_names for j, _ in wraps):
+            continue
+        span = sum(abs(c) * (model.jnt_range[j, 1] - model.jnt_range[j, 0]) for j, c in wraps)
+        if span <= 0 or hi - lo > _NARROW_TENDON * span:
+            continue
+        tname = _name(mujoco, model, mujoco.mjtObj.mjOBJ_TENDON, t, "tendon")
+        _tendon_coupling(mujoco, model, raw, t, 0.5 * (lo + hi), f"tendon {tname}", joint_names, actuated, depth)
+
+
+def _joint_wraps(mujoco, model, t: int):
+    adr, num = model.tendon_adr[t], model.tendon_num[t]
+    out = []
+    for w in range(adr, adr + num):
+        if model.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
+            return None
+        out.append((int(model.wrap_objid[w]), float(model.wrap_prm[w])))
+    return out
+
+
+def _tendon_coupling(mujoco, model, raw, t, length, source, joint_names, actuated, depth) -> None:
+    wraps = _joint_wraps(mujoco, model, t)
+    if wraps is None or len(wraps) != 2:
+        raw.notes.append(f"{source}: not a coupling of two joints, ignored")
+        return
+    (j1, c1), (j2, c2) = wraps
+    n1, n2 = joint_names.get(j1), joint_names.get(j2)
+    if n1 is None or n2 is None or c1 == 0 or c2 == 0:
+        return
+    following = {c.follower for c in raw.couplings}
+    if n1 in following and n2 in following:
+        return
+    # The follower: not already a follower; else the joint no actuator drives; else the
+    # one farther down the tree.
+    if (n1 in following) != (n2 in following):
+        follower_first = n2 in following
+    elif actuated and (n1 in actuated) != (n2 in actuated):
+        follower_first = n1 not in actuated
+    else:
+        follower_first = depth.get(n1, 0) > depth.get(n2, 0)
+    (fj, fc), (lj, lc) = ((n1, c1), (n2, c2)) if follower_first else ((n2, c2), (n1, c1))
+    # fc * qf + lc * ql = length  ->  qf = -lc/fc * ql + length/fc
+    raw.couplings.append(Coupling(fj, lj, -lc / fc, length / fc, source))

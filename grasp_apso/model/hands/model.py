@@ -1,0 +1,266 @@
+"""The general hand model (DESIGN.md Part 3): :class:`HandModel` and :class:`Finger`.
+
+A hand is a kinematic tree of links. Each link has a fixed ``origin`` (its frame in the
+parent link's frame at zero motion) followed by zero or more joint motions (URDF: one per
+joint; MJCF: a body may carry several hinges/slides, applied in order). Every movable
+joint of the file has a value in the *full* vector; the actuated positions ``q`` (n,)
+map to it linearly: ``full = A @ q + b`` (followers of a coupling are ``multiplier *
+leader + offset``; joints above the root are held at a constant). Poses are returned in
+the root link's frame.
+
+Immutable: every array is read-only; built once per hand by :func:`.load.load_hand`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from ...errors import InputError
+from .geometry import LinkGeometry
+
+__all__ = ["Finger", "Coupling", "Motion", "HandModel", "readonly"]
+
+
+def readonly(array, dtype=float) -> np.ndarray:
+    """A read-only copy of ``array``."""
+    out = np.array(array, dtype=dtype)
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True)
+class Finger:
+    """One finger: the chain from the root (palm) to ``tip_link``.
+
+    Attributes
+    ----------
+    name : str
+    tip_link : str
+        The last link of the chain with collision geometry.
+    joints : tuple of str
+        The actuated joints that move the chain (root to tip order).
+    closing : tuple of int
+        Per joint of ``joints``: +1 / -1 the sense that closes the finger, 0 for a
+        pre-shape joint (abduction, thumb rotation) that does not close.
+    pad_link : str
+    pad_center : (3,) float, m
+        The pad point in the pad link's frame.
+    pad_radius : float, m
+        Radius of curvature of the surface at the pad.
+    is_thumb : bool
+    """
+
+    name: str
+    tip_link: str
+    joints: tuple[str, ...]
+    closing: tuple[int, ...]
+    pad_link: str
+    pad_center: np.ndarray
+    pad_radius: float
+    is_thumb: bool = False
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """``follower = multiplier * leader + offset`` (rad or m), from ``source``."""
+
+    follower: str
+    leader: str
+    multiplier: float
+    offset: float
+    source: str
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One joint motion of a link: ``kind`` "revolute" (about ``axis`` through ``anchor``)
+    or "prismatic" (along ``axis``), by ``full[index] - ref``; ``axis`` unit, link frame."""
+
+    joint: str
+    kind: str
+    axis: tuple[float, float, float]
+    anchor: tuple[float, float, float]
+    index: int
+    ref: float = 0.0
+
+
+def _rotations(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rodrigues: unit axis (3,), angles (P,) -> (P, 3, 3)."""
+    x, y, z = axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+@dataclass(frozen=True, eq=False)
+class HandModel:
+    """A robot hand loaded from its description, with its derived grasp semantics.
+
+    Attributes
+    ----------
+    name : str
+    root_link : str
+        The palm: the link where the finger chains branch; poses are in its frame.
+    actuated_joints : tuple of str
+        The joints a JointState carries (file order; followers and held joints excluded).
+    lower, upper : (n,) float, rad or m
+    fingers : tuple of Finger
+    palm_normal : (3,) float
+        Root frame: the side the fingers close toward.
+    links : tuple of str
+        Every link, parents before children.
+    link_parents : tuple of int
+        Index of each link's parent in ``links`` (-1 for the top link).
+    collision : mapping link -> tuple of LinkGeometry (link frame)
+    spheres : mapping link -> SphereCover
+    couplings : tuple of Coupling
+    held_joints : mapping joint -> value
+        Joints above the root: fixed, not actuated for grasping.
+    notes : tuple of str
+        What the loader decided on its own (defaults, ignored elements).
+    source_hash : str
+        sha256 of the description file's content and the config.
+    """
+
+    name: str
+    root_link: str
+    actuated_joints: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    fingers: tuple[Finger, ...]
+    palm_normal: np.ndarray
+    links: tuple[str, ...]
+    link_parents: tuple[int, ...]
+    collision: Mapping[str, tuple[LinkGeometry, ...]]
+    spheres: Mapping[str, object]
+    couplings: tuple[Coupling, ...]
+    held_joints: Mapping[str, float]
+    notes: tuple[str, ...]
+    source_hash: str
+    joint_names: tuple[str, ...] = field(repr=False, default=())
+    origins: np.ndarray = field(repr=False, default=None)
+    motions: tuple[tuple[Motion, ...], ...] = field(repr=False, default=())
+    full_matrix: np.ndarray = field(repr=False, default=None)
+    full_offset: np.ndarray = field(repr=False, default=None)
+    root_inverse: np.ndarray = field(repr=False, default=None)
+
+    # ------------------------------------------------------------------ kinematics
+    @property
+    def n_joints(self) -> int:
+        """Number of actuated joints n."""
+        return len(self.actuated_joints)
+
+    def full_positions(self, q: np.ndarray) -> np.ndarray:
+        """Every movable joint's value (followers and held joints included).
+
+        q : (n,) or (P, n) float -> (m,) or (P, m) float, ordered as ``joint_names``.
+        """
+        q = np.asarray(q, dtype=float)
+        return q @ self.full_matrix.T + self.full_offset
+
+    def link_transforms_batch(self, q: np.ndarray) -> np.ndarray:
+        """Poses of every link in the root frame.
+
+        q : (P, n) float, rad or m -> (P, L, 4, 4) float (``links`` order).
+        """
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise InputError(f"q: expected shape (P, {self.n_joints}), got {q.shape}", "q")
+        full = self.full_positions(q)
+        count = q.shape[0]
+        out = np.empty((count, len(self.links), 4, 4))
+        for i, parent in enumerate(self.link_parents):
+            base = self.origins[i] if parent < 0 else out[:, parent] @ self.origins[i]
+            pose = np.broadcast_to(base, (count, 4, 4)).copy()
+            for m in self.motions[i]:
+                axis = np.asarray(m.axis)
+                value = full[:, m.index] - m.ref
+                local = np.broadcast_to(np.eye(4), (count, 4, 4)).copy()
+                if m.kind == "revolute":
+                    rot = _rotations(axis, value)
+                    anchor = np.asarray(m.anchor)
+                    local[:, :3, :3] = rot
+                    local[:, :3, 3] = anchor - rot @ anchor
+                else:
+                    local[:, :3, 3] = value[:, None] * axis
+                pose = pose @ local
+            out[:, i] = pose
+        return self.root_inverse @ out
+
+    def link_transforms(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Every link's pose in the root frame: q (n,) -> {link: (4, 4)}, couplings applied."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.n_joints,):
+            raise InputError(f"q: expected shape ({self.n_joints},), got {q.shape}", "q")
+        poses = self.link_transforms_batch(q[None])[0]
+        return {name: poses[i] for i, name in enumerate(self.links)}
+
+    # ------------------------------------------------------------------ structure
+    def link_index(self, link: str) -> int:
+        """Index of ``link`` in ``links`` (KeyError naming it when unknown)."""
+        try:
+            return self.links.index(link)
+        except ValueError:
+            raise KeyError(f"link {link!r} is not a link of hand {self.name!r}") from None
+
+    def chain(self, link: str) -> tuple[str, ...]:
+        """The links from the top of the tree down to ``link`` (inclusive)."""
+        out = []
+        i = self.link_index(link)
+        while i >= 0:
+            out.append(self.links[i])
+            i = self.link_parents[i]
+        return tuple(reversed(out))
+
+    def finger_links(self, finger: Finger | str) -> tuple[str, ...]:
+        """The links a finger moves: its chain below the root down to the tip, and the
+        tip's descendants."""
+        tip = finger.tip_link if isinstance(finger, Finger) else self.finger(finger).tip_link
+        path = self.chain(tip)
+        below = path[path.index(self.root_link) + 1:]
+        tip_i = self.link_index(tip)
+        extra = [name for i, name in enumerate(self.links) if self._descends(i, tip_i) and i != tip_i]
+        return tuple(below) + tuple(extra)
+
+    def _descends(self, i: int, ancestor: int) -> bool:
+        while i >= 0:
+            if i == ancestor:
+                return True
+            i = self.link_parents[i]
+        return False
+
+    def finger(self, name: str) -> Finger:
+        """The finger called ``name``."""
+        for f in self.fingers:
+            if f.name == name:
+                return f
+        raise KeyError(f"finger {name!r} is not a finger of hand {self.name!r}")
+
+    @property
+    def thumb(self) -> Finger | None:
+        """The finger that opposes the others."""
+        return next((f for f in self.fingers if f.is_thumb), None)
+
+    def open_configuration(self) -> np.ndarray:
+        """Every finger straight: each joint at the limit opposite its closing sense, 0
+        clipped into range for pre-shape joints. (n,) float."""
+        return self._posture(0.0)
+
+    def closed_configuration(self, fraction: float = 0.8) -> np.ndarray:
+        """Every closing joint ``fraction`` of the way to its closing limit (n,)."""
+        return self._posture(fraction)
+
+    def _posture(self, fraction: float) -> np.ndarray:
+        q = np.clip(0.0, self.lower, self.upper)
+        for finger in self.fingers:
+            for joint, sense in zip(finger.joints, finger.closing):
+                j = self.actuated_joints.index(joint)
+                if sense == 0:
+                    continue
+                start = q[j]
+                target = self.upper[j] if sense > 0 else self.lower[j]
+                q[j] = start + fraction * (target - start)
+        return q

@@ -1,0 +1,158 @@
+"""A hand from a URDF, parsed with yourdfpy (a maintained URDF library).
+
+Joints: revolute, continuous, prismatic, fixed (floating and planar refused, naming the
+joint); ``mimic`` elements become couplings. Collision geometry: box, cylinder, sphere,
+mesh (capsule, a common extension, too). Mesh paths resolve relative to the URDF file;
+``package://NAME/rest`` resolves to ``rest`` under the nearest ancestor folder called
+NAME, or under a folder NAME beside an ancestor, or else under the URDF's folder or one of
+its three parents (the layouts of a ROS package and of a copied description). Only collision meshes are read: a missing one is an error naming it.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ...errors import HandDescriptionError
+from .description import RawHand, RawJoint, RawLink
+from .geometry import LinkGeometry
+from .model import Coupling
+
+__all__ = ["read_urdf", "resolve_mesh_path"]
+
+
+def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
+    """The file a URDF mesh ``filename`` names (may not exist)."""
+    if uri.startswith("file://"):
+        return Path(uri[len("file://"):])
+    if uri.startswith("package://"):
+        package, _, rest = uri[len("package://"):].partition("/")
+        for folder in (base_dir, *base_dir.parents):
+            if folder.name == package and (folder / rest).exists():
+                return folder / rest
+        for folder in (base_dir, *base_dir.parents):
+            if (folder / package / rest).exists():
+                return folder / package / rest
+        # A description copied out of its package: urdf/ and meshes/ side by side.
+        for folder in (base_dir, *list(base_dir.parents)[:3]):
+            if (folder / rest).exists():
+                return folder / rest
+        return base_dir / rest
+    path = Path(uri)
+    return path if path.is_absolute() else base_dir / path
+
+
+def _load_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
+    if not path.is_file():
+        raise HandDescriptionError(f"{where}: collision mesh file {path} not found", field=where)
+    if path.stat().st_size > max_bytes:
+        raise HandDescriptionError(f"{where}: collision mesh {path.name} is over the size limit "
+                                   f"({path.stat().st_size} > {max_bytes} bytes)", field=where)
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many types for a bad file
+        raise HandDescriptionError(f"{where}: collision mesh {path.name} cannot be read ({type(exc).__name__})",
+                                   field=where) from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise HandDescriptionError(f"{where}: collision mesh {path.name} has no triangles", field=where)
+    return mesh
+
+
+def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeometry | None:
+    geom = collision.geometry
+    origin = np.eye(4) if collision.origin is None else np.asarray(collision.origin, float)
+    if geom.box is not None:
+        return LinkGeometry("box", tuple(np.asarray(geom.box.size, float) / 2.0), origin, None, where)
+    if geom.cylinder is not None:
+        return LinkGeometry("cylinder", (geom.cylinder.radius, geom.cylinder.length / 2.0), origin, None, where)
+    if geom.sphere is not None:
+        return LinkGeometry("sphere", (geom.sphere.radius,), origin, None, where)
+    capsule = getattr(geom, "capsule", None)
+    if capsule is not None:
+        return LinkGeometry("capsule", (capsule.radius, capsule.length / 2.0), origin, None, where)
+    if geom.mesh is not None:
+        path = resolve_mesh_path(geom.mesh.filename, base_dir)
+        mesh = _load_mesh(path, where, max_bytes).copy()
+        scale = geom.mesh.scale
+        if scale is not None:
+            mesh.apply_scale(np.broadcast_to(np.asarray(scale, float), (3,)))
+        return LinkGeometry("mesh", (), origin, mesh, f"{where} ({path.name})")
+    return None
+
+
+def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF") -> RawHand:
+    """The RawHand of a URDF document (``base_dir``: where relative mesh paths start)."""
+    import yourdfpy  # a pinned dependency; imported here to keep package import light
+
+    try:
+        # Bytes: lxml refuses a str that carries an encoding declaration (<?xml ... encoding=?>).
+        robot = yourdfpy.URDF.load(io.BytesIO(text.encode("utf-8")), build_scene_graph=False,
+                                   build_collision_scene_graph=False, load_meshes=False,
+                                   load_collision_meshes=False)
+    except Exception as exc:  # lxml / yourdfpy errors: the message may quote the file
+        raise HandDescriptionError(f"hand_description: {label} is not a valid URDF ({type(exc).__name__})",
+                                   field="hand_description") from None
+    desc = robot.robot
+    joints_by_child = {}
+    for joint in desc.joints:
+        if joint.child in joints_by_child:
+            raise HandDescriptionError(f"link {joint.child!r}: child of two joints", field=joint.child)
+        joints_by_child[joint.child] = joint
+    link_names = [link.name for link in desc.links]
+    for joint in desc.joints:
+        for end in (joint.parent, joint.child):
+            if end not in link_names:
+                raise HandDescriptionError(f"joint {joint.name!r}: link {end!r} is not defined", field=joint.name)
+    tops = [name for name in link_names if name not in joints_by_child]
+    if len(tops) != 1:
+        raise HandDescriptionError(f"hand_description: a URDF needs one root link, found {len(tops)} "
+                                   f"({', '.join(tops[:4])})", field="hand_description")
+    children: dict[str, list] = {}
+    for joint in desc.joints:
+        children.setdefault(joint.parent, []).append(joint)
+    by_name = {link.name: link for link in desc.links}
+    raw = RawHand(name=desc.name or "hand", links=[])
+    order = [(tops[0], None)]
+    seen = set()
+    while order:
+        name, joint = order.pop()
+        if name in seen:
+            raise HandDescriptionError(f"link {name!r}: the joints form a loop", field=name)
+        seen.add(name)
+        link = by_name[name]
+        geoms = []
+        for k, collision in enumerate(link.collisions):
+            where = f"link {name} collision {collision.name or k}"
+            g = _geometry(collision, where, base_dir, max_mesh_bytes)
+            if g is None:
+                raise HandDescriptionError(f"{where}: geometry kind not supported", field=name)
+            geoms.append(g)
+        origin = np.eye(4) if joint is None or joint.origin is None else np.asarray(joint.origin, float)
+        moving = []
+        if joint is not None and joint.type != "fixed":
+            if joint.type not in ("revolute", "continuous", "prismatic"):
+                raise HandDescriptionError(f"joint {joint.name!r}: type {joint.type} is not supported "
+                                           "(revolute, continuous, prismatic, fixed)", field=joint.name)
+            axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, float)
+            lim = joint.limit
+            lower = None if lim is None or lim.lower is None else float(lim.lower)
+            upper = None if lim is None or lim.upper is None else float(lim.upper)
+            if joint.type == "continuous":
+                lower = upper = None
+            moving.append(RawJoint(joint.name, joint.type, axis, lower=lower, upper=upper,
+                                   source=f"{joint.type} joint without <limit>"))
+            if joint.mimic is not None:
+                raw.couplings.append(Coupling(joint.name, joint.mimic.joint,
+                                              float(1.0 if joint.mimic.multiplier is None else joint.mimic.multiplier),
+                                              float(0.0 if joint.mimic.offset is None else joint.mimic.offset),
+                                              f"joint {joint.name} mimic"))
+        raw.links.append(RawLink(name, None if joint is None else joint.parent, origin, moving, geoms))
+        for child_joint in reversed(children.get(name, [])):  # depth first, file order
+            order.append((child_joint.child, child_joint))
+    if len(seen) != len(link_names):
+        raise HandDescriptionError("hand_description: some links are not connected to the root link",
+                                   field="hand_description")
+    return raw

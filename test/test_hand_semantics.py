@@ -1,0 +1,254 @@
+"""Grasp semantics derived from real hands (issue 20), the override config, and the
+refusal of bad descriptions with a message naming the element.
+
+Pads and spheres are checked independently of the code that made them: the pad's
+distance to the link surface with trimesh's signed distance; the spheres' cover on
+trimesh surface samples and their stray with trimesh's signed distance of points spread
+over each sphere.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from grasp_apso.errors import HandDescriptionError
+from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.hands.spheres import cover_link
+from hand_files import installed_hand, write_allegro_like
+
+NAMES = ("shadow", "adroit", "inspire", "fourier", "allegro", "paper")
+
+
+@pytest.fixture(scope="module")
+def allegro_file(tmp_path_factory):
+    return write_allegro_like(tmp_path_factory.mktemp("allegro"), "mixed")
+
+
+@pytest.fixture(scope="module")
+def hands(allegro_file):
+    files = {n: installed_hand(n) for n in NAMES[:4]}
+    files.update(allegro=allegro_file, paper=None)
+    return {n: load_hand(p, spheres=False) for n, p in files.items()}
+
+
+def _link_mesh(hand, link: str) -> trimesh.Trimesh:
+    return trimesh.util.concatenate([g.to_trimesh() for g in hand.collision[link]])
+
+
+def _pads(hand, q):
+    """finger -> (pad point, centre of the pad link's geometry), root frame."""
+    poses = hand.link_transforms(q)
+    out = {}
+    for f in hand.fingers:
+        T = poses[f.pad_link]
+        centre = _link_mesh(hand, f.pad_link).bounds.mean(axis=0)
+        out[f.name] = (T[:3, :3] @ f.pad_center + T[:3, 3], T[:3, :3] @ centre + T[:3, 3])
+    return out
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_pad_is_on_the_palmar_surface_of_the_last_link(hands, name):
+    hand = hands[name]
+    for f in hand.fingers:
+        assert f.pad_link == f.tip_link
+        # Within 1 mm of the link's collision surface (trimesh: + inside).
+        depth = min(abs(float(trimesh.proximity.signed_distance(g.to_trimesh(), f.pad_center[None])[0]))
+                    for g in hand.collision[f.pad_link])
+        assert depth <= 1e-3, (f.name, depth)
+        assert 0.001 <= f.pad_radius <= 0.02
+    # Straight fingers: the pad is on the palm's side of the fingertip link (in the upper
+    # part of the link's extent along the palm normal).
+    poses = hand.link_transforms(hand.open_configuration())
+    for f in hand.fingers:
+        if not f.is_thumb:
+            T = poses[f.pad_link]
+            heights = (_link_mesh(hand, f.pad_link).vertices @ T[:3, :3].T + T[:3, 3]) @ hand.palm_normal
+            pad = (T[:3, :3] @ f.pad_center + T[:3, 3]) @ hand.palm_normal
+            assert (pad - heights.min()) / np.ptp(heights) > 0.7, f.name
+    # Closing: the thumb's pad faces the other fingers' pads.
+    pads = _pads(hand, hand.closed_configuration(0.3))
+    pad, centre = pads[hand.thumb.name]
+    target = np.mean([p for n, (p, _) in pads.items() if n != hand.thumb.name], axis=0)
+    assert np.dot(pad - centre, target - centre) > 0.0
+
+
+#: The palm's side, known independently: the Shadow/Adroit touch-sensor sites of the palm
+#: lie at -y of the palm frame; the Allegro-like palm box's front face is +x; the paper
+#: hand's YAML says +z is out of the palm.
+PALM_SIDES = {"shadow": (0, -1, 0), "adroit": (0, -1, 0), "allegro": (1, 0, 0), "paper": (0, 0, 1)}
+
+
+@pytest.mark.parametrize("name", list(PALM_SIDES))
+def test_the_palm_normal_is_the_palm_side(hands, name):
+    assert np.dot(hands[name].palm_normal, PALM_SIDES[name]) > np.cos(np.radians(30))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_fingers_close_toward_the_palm_normal_and_the_thumb(hands, name):
+    """Closing moves every fingertip toward the thumb's tip (and the thumb toward the
+    others): the pads end up closer together than with the fingers straight."""
+    hand = hands[name]
+
+    def spread(q):
+        poses = hand.link_transforms(q)
+        pts = np.array([poses[f.pad_link][:3, :3] @ f.pad_center + poses[f.pad_link][:3, 3] for f in hand.fingers])
+        thumb = pts[[f.is_thumb for f in hand.fingers]][0]
+        return np.linalg.norm(pts - thumb, axis=1).sum()
+
+    assert spread(hand.closed_configuration(0.6)) < spread(hand.open_configuration())
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_spheres_cover_the_fingertips_and_stray_at_most_2mm(hands, name):
+    hand = hands[name]
+    rng = np.random.default_rng(7)
+    for f in hand.fingers[:2]:
+        geoms = hand.collision[f.tip_link]
+        cover = cover_link(geoms, 0.002, np.random.default_rng(20))
+        assert 1 <= len(cover.radii) <= 256
+        meshes = [g.to_trimesh() for g in geoms]
+        surface = np.vstack([m.sample(800, seed=int(rng.integers(1 << 30))) for m in meshes])
+        gap = np.linalg.norm(surface[:, None] - cover.centers[None], axis=2) - cover.radii[None]
+        assert np.mean(gap.min(axis=1) <= 1e-4) >= 0.995, f.tip_link
+        unit = trimesh.creation.icosphere(subdivisions=2).vertices
+        on_spheres = (cover.centers[:, None] + cover.radii[:, None, None] * unit[None]).reshape(-1, 3)
+        outside = -np.max([trimesh.proximity.signed_distance(m, on_spheres) for m in meshes], axis=0)
+        assert outside.max() <= 0.002 + 1e-4, (f.tip_link, outside.max())
+
+
+# ----------------------------------------------------------------------- override config
+def test_the_config_overrides_the_derivation(allegro_file):
+    config = {"closing": {"index_joint_0": 1}, "thumb": "index", "palm_normal": [0, 0, 2],
+              "pads": {"ring": {"link": "ring_distal", "center": [0.01, 0, 0.02], "radius": 0.007}}}
+    hand = load_hand(allegro_file, config, spheres=False)
+    assert hand.thumb.name == "index"
+    assert hand.finger("index").closing[0] == 1
+    np.testing.assert_allclose(hand.palm_normal, [0, 0, 1])
+    ring = hand.finger("ring")
+    assert (ring.pad_link, ring.pad_radius) == ("ring_distal", 0.007)
+    assert load_hand(allegro_file, spheres=False).thumb.name == "thumb"  # cached separately
+
+
+def test_the_config_can_name_the_root_and_hold_joints(tmp_path):
+    path = installed_hand("shadow")
+    hand = load_hand(path, {"hold": {"robot0:WRJ1": 0.1}}, spheres=False)
+    assert hand.held_joints["robot0:WRJ1"] == 0.1
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("fingers: {first: robot0:ffdistal, thumb: robot0:thdistal}\n")
+    two = load_hand(path, cfg, spheres=False)
+    assert [f.name for f in two.fingers] == ["first", "thumb"]
+
+
+@pytest.mark.parametrize("config, field", [
+    ({"colour": 1}, "hand_config.colour"),
+    ({"closing": {"index_joint_1": 2}}, "hand_config.closing.index_joint_1"),
+    ({"closing": {"nope": 1}}, "hand_config.closing"),
+    ({"thumb": "pinky"}, "hand_config.thumb"),
+    ({"root_link": "nowhere"}, "hand_config.root_link"),
+    ({"palm_normal": [0, 0, 0]}, "hand_config.palm_normal"),
+    ({"pads": {"ring": {"link": "x"}}}, "hand_config.pads.ring"),
+])
+def test_a_bad_config_is_refused_naming_the_key(allegro_file, config, field):
+    with pytest.raises(HandDescriptionError) as info:
+        load_hand(allegro_file, config, spheres=False)
+    assert info.value.field == field
+    assert str(info.value).startswith(field)
+
+
+# ----------------------------------------------------------------------- bad descriptions
+def _edit(allegro_file: Path, tmp_path: Path, old: str, new: str, count: int = 1) -> Path:
+    text = allegro_file.read_text()
+    assert old in text
+    out = allegro_file.parent / f"edited_{abs(hash((old, new)))}.urdf"
+    out.write_text(text.replace(old, new, count))
+    return out
+
+
+def test_not_a_hand_file(tmp_path):
+    for name, content, match in [("hand.txt", "x", "not a URDF"), ("hand.urdf", "hello", "not a valid URDF"),
+                                 ("hand.xml", "<robot/>", "MJCF")]:
+        path = tmp_path / name
+        path.write_text(content)
+        with pytest.raises(HandDescriptionError, match=match) as info:
+            load_hand(path, spheres=False)
+        assert info.value.field == "hand_description"
+    with pytest.raises(HandDescriptionError, match="cannot read"):
+        load_hand(tmp_path / "missing.urdf")
+
+
+def test_a_missing_collision_mesh_is_named_and_missing_visual_meshes_are_ignored(allegro_file, tmp_path):
+    # The generated URDF's visual meshes (.dae) do not exist: it loads.
+    assert not list(allegro_file.parent.rglob("*.dae"))
+    edited = _edit(allegro_file, tmp_path, "meshes/ring_distal_0.stl", "meshes/gone.stl")
+    with pytest.raises(HandDescriptionError, match="link ring_distal.*gone.stl not found"):
+        load_hand(edited, spheres=False)
+
+
+def test_a_joint_without_limits_is_refused_and_continuous_joints_get_pi(allegro_file, tmp_path):
+    edited = _edit(allegro_file, tmp_path, '<limit lower="-0.196" upper="1.61" effort="0.7" velocity="7"/>', "")
+    with pytest.raises(HandDescriptionError, match="index_joint_1.*no limits") as info:
+        load_hand(edited, spheres=False)
+    assert info.value.field == "index_joint_1"
+    cont = _edit(allegro_file, tmp_path, '<joint name="index_joint_0" type="revolute">',
+                 '<joint name="index_joint_0" type="continuous">')
+    hand = load_hand(cont, spheres=False)
+    k = hand.actuated_joints.index("index_joint_0")
+    assert (hand.lower[k], hand.upper[k]) == (-np.pi, np.pi)
+    assert any("index_joint_0: continuous" in n for n in hand.notes)
+
+
+def test_a_coupling_loop_is_refused(allegro_file, tmp_path):
+    text = allegro_file.read_text()
+    text = text.replace('<joint name="index_joint_2" type="revolute">',
+                        '<joint name="index_joint_2" type="revolute"><mimic joint="index_joint_3"/>')
+    text = text.replace('<joint name="index_joint_3" type="revolute">',
+                        '<joint name="index_joint_3" type="revolute"><mimic joint="index_joint_2"/>')
+    path = allegro_file.parent / "loop.urdf"
+    path.write_text(text)
+    with pytest.raises(HandDescriptionError, match="coupling loop"):
+        load_hand(path, spheres=False)
+
+
+_MJCF = """<mujoco model="two">
+  <asset>{assets}</asset>
+  <worldbody>
+    <body name="palm"><geom type="box" size="0.04 0.04 0.01"/>{visual}
+      {fingers}
+    </body>
+  </worldbody>
+</mujoco>"""
+_FINGER = """<body name="f{i}_1" pos="{x} 0 0.01"><joint name="f{i}_j1" axis="0 1 0" range="0 1.5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
+        <body name="f{i}_2" pos="0 0 0.04"><joint name="f{i}_j2" axis="0 1 0" range="0 1.5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/>{tipmesh}</body></body>"""
+
+
+def _mjcf(tmp_path, fingers: int, visual_missing=False, collision_missing=False) -> Path:
+    assets, visual, tipmesh = "", "", ""
+    if visual_missing:
+        assets += '<mesh name="look" file="look.stl"/>'
+        visual = '<geom type="mesh" mesh="look" contype="0" conaffinity="0"/>'
+    if collision_missing:
+        assets += '<mesh name="tip" file="tip.stl"/>'
+        tipmesh = '<geom name="tipgeom" type="mesh" mesh="tip"/>'
+    body = "\n".join(_FINGER.format(i=i, x=0.03 * (i - 0.5) * (1 if i % 2 else -1), tipmesh=tipmesh if i == 0 else "")
+                     for i in range(fingers))
+    path = tmp_path / f"two_{fingers}_{visual_missing}_{collision_missing}.xml"
+    path.write_text(_MJCF.format(assets=assets, visual=visual, fingers=body))
+    return path
+
+
+def test_mjcf_meshes_fingers_and_size(tmp_path):
+    hand = load_hand(_mjcf(tmp_path, 2, visual_missing=True), spheres=False)
+    assert len(hand.fingers) == 2 and any("look.stl missing" in n for n in hand.notes)
+    with pytest.raises(HandDescriptionError, match="tipgeom.*tip.stl not found"):
+        load_hand(_mjcf(tmp_path, 2, collision_missing=True), spheres=False)
+    with pytest.raises(HandDescriptionError, match="fewer than two fingers"):
+        load_hand(_mjcf(tmp_path, 1), spheres=False)
+    with pytest.raises(HandDescriptionError, match="over the limit") as info:
+        load_hand(_mjcf(tmp_path, 2), spheres=False, max_file_bytes=100)
+    assert info.value.field == "hand_description"
