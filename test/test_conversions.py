@@ -270,3 +270,16 @@ def test_general_hand_joint_names_in_the_reply(planned, tmp_path):
         q = np.array([p.positions for p in g.hand_trajectory.points])
         assert q.shape == (3, n) and np.allclose(q[0], hand.lower) and np.allclose(q[1], c.joint_positions)
     serialize_message(msg)
+    markers = ros_markers.grasp_markers(general, Header(frame_id='table'), hand).markers
+    drawn = [m for m in markers if m.ns == 'grasp_apso/hand']
+    assert drawn and all(m.type == Marker.TRIANGLE_LIST and len(m.points) % 3 == 0 for m in drawn)
+    assert not [m for m in markers if m.ns in ('grasp_apso/palm', 'grasp_apso/links')]
+    assert sum(len(m.points) for m in drawn) // 3 <= 3500
+    # Independent: the drawn hand's points lie where the links are: every link origin placed by
+    # wrist_pose @ link_transforms is within the link's own extent of some drawn point.
+    points = np.array([[p.x, p.y, p.z] for m in drawn for p in m.points])
+    poses_ = hand.link_transforms(general.joint_positions)
+    tip = general.wrist_pose @ poses_[hand.fingers[0].pad_link]
+    assert np.min(np.linalg.norm(points - tip[:3, 3], axis=1)) < 0.03
+    assert {m.ns for m in markers} >= {'grasp_apso/pre_grasp_hand', 'grasp_apso/approach'}
+    serialize_message(ros_markers.grasp_markers(general, Header(frame_id='table'), hand))

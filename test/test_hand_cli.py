@@ -101,10 +101,28 @@ def _start(context, name, **values):
         node.destroy_node()
 
 
-def test_node_accepts_a_urdf_hand_and_keeps_planning_with_the_paper_hand(context, allegro):
+def test_node_plans_with_the_urdf_hand_it_is_given(context, allegro):
+    from grasp_apso.model.hands.model import HandModel as AnyHand
+
     params = _start(context, "hand_ok", hand_description=str(allegro))
-    assert isinstance(params.settings.hand, PaperHand)
+    hand = params.settings.hand
+    assert isinstance(hand, AnyHand) and not isinstance(hand, PaperHand)
     assert params.settings["hand_description"] == str(allegro)
+    # Independent of the loader: the URDF's own non-fixed, non-mimic joints, in file order.
+    import xml.etree.ElementTree as ET
+
+    joints = [j.get("name") for j in ET.parse(allegro).getroot().iter("joint")
+              if j.get("type") != "fixed" and j.find("mimic") is None]
+    assert list(hand.actuated_joints) == joints and len(joints) == 16
+    assert hand.spheres  # the search's sphere cover is built at start-up, not per request
+
+
+def test_node_keeps_the_paper_hand_for_a_yaml_or_no_description(context):
+    from grasp_apso.model.hand import default_hand_path
+
+    for values in ({}, {"hand_description": str(default_hand_path())}):
+        params = _start(context, "hand_paper", **values)
+        assert isinstance(params.settings.hand, PaperHand)
 
 
 @pytest.mark.parametrize("kind", ["missing_mesh", "suffix", "config"])

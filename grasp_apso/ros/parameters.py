@@ -30,7 +30,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 
 from ..errors import GraspApsoError, HandDescriptionError, InputError
-from ..model.hand import HandModel, load_hand
+from ..model.hand import load_hand
 from ..search.options import PlanOptions
 from ..tunables import Tunable, ros_tunables
 from .database_answers import open_database
@@ -73,12 +73,14 @@ class Settings:
     """An immutable snapshot of the parameters: what one request uses from start to end.
 
     ``values`` maps every parameter name to its value; ``options`` are the plan options
-    made of them (a request overrides a few); ``hand`` is the hand loaded at start-up.
+    made of them (a request overrides a few); ``hand`` is the hand loaded at start-up
+    (the paper's :class:`~grasp_apso.model.hand.HandModel` or a general
+    :class:`grasp_apso.model.hands.HandModel`).
     """
 
     values: Mapping[str, Any]
     options: PlanOptions
-    hand: HandModel
+    hand: Any
 
     def __getitem__(self, name: str) -> Any:
         return self.values[name]
@@ -92,31 +94,34 @@ def _options(values: Mapping[str, Any]) -> PlanOptions:
     return PlanOptions(**settings)
 
 
-def _startup_hand(description: str, config: str, node: Node) -> HandModel:
-    """The hand the planner uses, after checking ``hand_description`` and ``hand_config``
-    with the general loader (any URDF, MJCF or YAML; a bad one stops the node naming the
-    parameter). The planner plans with the paper's hand until issue 20 part 2: a URDF or
-    MJCF description is checked and reported, and the paper's hand is used."""
+def _startup_hand(description: str, config: str, node: Node) -> Any:
+    """The hand every request plans with, loaded once at start-up.
+
+    A ``.yaml`` description (or none: the paper's hand shipped in the package) keeps the
+    paper hand's path (:class:`grasp_apso.model.hand.HandModel`); a ``.urdf`` or ``.xml``
+    (MJCF) gives the general :class:`grasp_apso.model.hands.HandModel` (with its sphere
+    cover), which the planner takes as data. Both are checked with the general loader
+    first, so a bad file or config stops the node naming the parameter."""
     from ..model.hands.load import load_hand as load_any_hand
 
+    paper = not description or description.lower().endswith((".yaml", ".yml"))
     try:
-        general = load_any_hand(description or None, config or None, spheres=False)
+        general = load_any_hand(description or None, config or None, spheres=not paper)
     except (GraspApsoError, ValueError) as exc:
         text = str(exc)
         name = "hand_config" if text.startswith("hand_config") else "hand_description"
         if not text.startswith(name):
             text = f"{name}: {text}"
         raise HandDescriptionError(text, name) from None
+    if not paper:
+        node.get_logger().info(
+            f"hand_description: {general.name} ({len(general.fingers)} fingers, "
+            f"{len(general.actuated_joints)} actuated joints: {', '.join(general.actuated_joints)})")
+        return general
     try:
-        hand = load_hand(description if description.endswith((".yaml", ".yml")) else None)
+        return load_hand(description or None)
     except (GraspApsoError, ValueError) as exc:
         raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
-    if description and not description.endswith((".yaml", ".yml")):
-        node.get_logger().warning(
-            f"hand_description: {general.name} loaded ({len(general.fingers)} fingers, "
-            f"{len(general.actuated_joints)} actuated joints); the planner plans with the paper's hand "
-            "until the general hand reaches it")
-    return hand
 
 
 class NodeParameters:
