@@ -14,7 +14,7 @@ import pytest
 from grasp_apso.errors import InputError
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.tools.hand_picture import draw_hand, finger_color
-from grasp_apso.tools.palette import rgb
+from grasp_apso.presentation.palette import rgb
 
 
 @pytest.fixture(scope="module")

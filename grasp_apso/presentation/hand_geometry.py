@@ -17,8 +17,13 @@ from typing import Any
 import numpy as np
 
 from ..cache import BoundedCache, approximate_nbytes
+from .palette import FINGER_COLORS, PALM_COLOR
 
-__all__ = ["MAX_DRAWN_TRIANGLES", "decimate_for_drawing", "hand_triangles", "link_meshes"]
+__all__ = ["MAX_DRAWN_TRIANGLES", "EXTRA_FINGER_COLORS", "decimate_for_drawing", "finger_color", "hand_triangles",
+           "link_colors", "link_meshes"]
+
+#: Colours of fingers whose names the palette does not know (Okabe-Ito, then greys).
+EXTRA_FINGER_COLORS = ("#56B4E9", "#F0E442", "#000000", "#7F7F7F", "#B07AA1")
 
 #: Meshes with more triangles are simplified (vertex clustering) before drawing.
 MAX_DRAWN_TRIANGLES = 3000
@@ -75,6 +80,26 @@ def decimate_for_drawing(
             break
         cells = int(cells * 0.8)
     return best
+
+
+def finger_color(name: str, index: int) -> str:
+    """The palette's colour for a finger called like the paper's (index, thumb, ...),
+    otherwise one of ``EXTRA_FINGER_COLORS`` by the finger's index."""
+    key = name.lower()
+    for known, color in FINGER_COLORS.items():
+        if known in key:
+            return color
+    return EXTRA_FINGER_COLORS[index % len(EXTRA_FINGER_COLORS)]
+
+
+def link_colors(hand: Any) -> dict[str, str]:
+    """Every link with collision geometry -> its finger's colour (:func:`finger_color`),
+    the palm's for the links no finger moves."""
+    colors: dict[str, str] = {}
+    for i, finger in enumerate(hand.fingers):
+        for link in hand.finger_links(finger):
+            colors.setdefault(link, finger_color(finger.name, i))
+    return {link: colors.get(link, PALM_COLOR) for link in hand.collision}
 
 
 _LINK_MESHES: BoundedCache[dict] = BoundedCache(max_entries=8, max_bytes=200_000_000, size_of=approximate_nbytes)

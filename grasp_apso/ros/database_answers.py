@@ -94,8 +94,10 @@ class StoredGrasps:
                 f"{1000.0 * self.planning_time:.1f} ms; nothing planned")
 
 
-def open_database(path: str, hand: HandModel) -> Any:
-    """The grasp database at ``path`` for ``hand``, or None when ``path`` is empty.
+def open_database(path: str, hand: Any) -> Any:
+    """The grasp database at ``path`` for ``hand`` (a
+    :class:`~grasp_apso.model.planning_hand.PlanningHand`: the hand and its identity), or
+    None when ``path`` is empty.
 
     Raises
     ------

@@ -17,7 +17,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..model.hand import FINGER_NAMES, HandModel
 from ..model.scene import BOX, CYLINDER, SPHERE, Scene
 from ..presentation import palette
-from ..presentation.hand_geometry import hand_triangles
+from ..presentation.hand_geometry import hand_triangles, link_colors
 from .conversions import matrix_to_pose_msg
 
 __all__ = ["MARKER_NAMESPACE", "delete_all_markers", "grasp_markers", "scene_markers"]
@@ -102,20 +102,10 @@ def _is_general(hand: Any) -> bool:
     return not isinstance(hand, HandModel)
 
 
-def _link_colors(hand: Any) -> dict[str, str]:
-    """Each link's colour: its finger's (the palette's by name, else grey), else the palm's."""
-    colors: dict[str, str] = {}
-    for finger in hand.fingers:
-        color = next((c for name, c in palette.FINGER_COLORS.items() if name in finger.name.lower()), "#B3B3B3")
-        for link in hand.finger_links(finger):
-            colors.setdefault(link, color)
-    return colors
-
-
 def _general_hand(b: _Builder, hand: Any, root: np.ndarray, q: np.ndarray, prefix: str, alpha: float) -> None:
     """A general hand's own collision geometry at posture ``q``, root link at ``root``:
     one TRIANGLE_LIST per link (``<ns>/<prefix>hand``), in its finger's colour."""
-    colors = _link_colors(hand)
+    colors = link_colors(hand)
     for link, tris in hand_triangles(hand, q, root).items():
         m = b.add(f"{prefix}hand", Marker.TRIANGLE_LIST)
         m.scale = Vector3(x=1.0, y=1.0, z=1.0)

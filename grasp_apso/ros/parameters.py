@@ -6,7 +6,9 @@
   ``hand_description``, ``hand_config``, ``queue_length``, ``workers``, ``grasp_database``).
 - :class:`NodeParameters`: declares them on a node, checks the start-up values with
   :meth:`Tunable.check <grasp_apso.tunables.Tunable.check>` (a bad value stops the node
-  with a message naming the parameter), loads the hand description and opens the grasp
+  with a message naming the parameter), loads the hand it plans with
+  (:func:`~grasp_apso.model.planning_hand.load_planning_hand`: the paper's for a ``.yaml``,
+  a general hand for a ``.urdf`` / ``.xml``) and opens the grasp
   database (:mod:`.database_answers`) once, and keeps a
   :class:`Settings` snapshot that requests read. Changes at run time go through a
   pre-set callback (an integer is accepted for a double), an on-set callback (read-only
@@ -29,8 +31,8 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
-from ..errors import GraspApsoError, HandDescriptionError, InputError
-from ..model.hand import load_hand
+from ..errors import GraspApsoError, InputError
+from ..model.planning_hand import is_general_hand, load_planning_hand
 from ..search.options import PlanOptions
 from ..tunables import Tunable, ros_tunables
 from .database_answers import open_database
@@ -94,36 +96,6 @@ def _options(values: Mapping[str, Any]) -> PlanOptions:
     return PlanOptions(**settings)
 
 
-def _startup_hand(description: str, config: str, node: Node) -> Any:
-    """The hand every request plans with, loaded once at start-up.
-
-    A ``.yaml`` description (or none: the paper's hand shipped in the package) keeps the
-    paper hand's path (:class:`grasp_apso.model.hand.HandModel`); a ``.urdf`` or ``.xml``
-    (MJCF) gives the general :class:`grasp_apso.model.hands.HandModel` (with its sphere
-    cover), which the planner takes as data. Both are checked with the general loader
-    first, so a bad file or config stops the node naming the parameter."""
-    from ..model.hands.load import load_hand as load_any_hand
-
-    paper = not description or description.lower().endswith((".yaml", ".yml"))
-    try:
-        general = load_any_hand(description or None, config or None, spheres=not paper)
-    except (GraspApsoError, ValueError) as exc:
-        text = str(exc)
-        name = "hand_config" if text.startswith("hand_config") else "hand_description"
-        if not text.startswith(name):
-            text = f"{name}: {text}"
-        raise HandDescriptionError(text, name) from None
-    if not paper:
-        node.get_logger().info(
-            f"hand_description: {general.name} ({len(general.fingers)} fingers, "
-            f"{len(general.actuated_joints)} actuated joints: {', '.join(general.actuated_joints)})")
-        return general
-    try:
-        return load_hand(description or None)
-    except (GraspApsoError, ValueError) as exc:
-        raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
-
-
 class NodeParameters:
     """Declares the parameters on ``node`` and keeps the current :class:`Settings`.
 
@@ -150,9 +122,13 @@ class NodeParameters:
         allowed = str(values["allowed_mesh_dir"])
         if allowed and not os.path.isdir(allowed):
             raise InputError("allowed_mesh_dir: not a directory", "allowed_mesh_dir")
-        hand = _startup_hand(str(values["hand_description"]), str(values["hand_config"]), node)
-        self._hand = hand
-        self.database = open_database(str(values["grasp_database"]), hand)
+        #: The hand every request plans with and its identity (:mod:`grasp_apso.model.planning_hand`).
+        self.planning_hand = load_planning_hand(str(values["hand_description"]), str(values["hand_config"]))
+        hand = self._hand = self.planning_hand.hand
+        if is_general_hand(hand):
+            node.get_logger().info(f"hand_description: {hand.name} ({len(hand.fingers)} fingers, {len(hand.actuated_joints)} "
+                                   f"actuated joints: {', '.join(hand.actuated_joints)})")
+        self.database = open_database(str(values["grasp_database"]), self.planning_hand)
         self._settings = Settings(MappingProxyType(dict(values)), _options(values), hand)
         node.add_pre_set_parameters_callback(self._coerce)
         node.add_on_set_parameters_callback(self._check)
