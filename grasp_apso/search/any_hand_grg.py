@@ -1,0 +1,113 @@
+"""Guided Random Generation for a general hand (paper section 4.2, the hand as data).
+
+Wrist orientations from the shape class (:meth:`grasp_apso.search.grg.ShapeClass.sample_wrists`,
+which also turns them to the free side of support planes), standoffs in the hand's range
+(biased toward the palm), pre-shapes within the joint limits: each closing joint in the
+open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense),
+each pre-shape joint (abduction, thumb rotation) anywhere in its range. A particle is kept
+when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
+more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..geometry.any_hand_decoder import AnyHandModel, decode_any
+from ..model.hand import rotation_to_wrist_angles
+from .grg import ShapeClass
+
+__all__ = ["AnyHandGenerator", "sample_any"]
+
+OPEN_FRACTION = 0.5
+#: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR).
+REGENERATE_ROUNDS = 3
+REGENERATE_FACTOR = 0.5
+#: Rounds of drawing batches and the batch size over the particles wanted.
+DRAW_ROUNDS = 8
+DRAW_FACTOR = 3
+
+
+def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
+    """Pre-shapes (n, n_joints) within the limits (see the module docstring)."""
+    t = model.tables
+    lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
+    q = rng.uniform(lo, hi, (n, len(lo)))
+    for f in range(t.n_fingers):
+        for k in range(int(t.j_count[f])):
+            target = t.j_target[f, k]
+            if np.isnan(target):
+                continue
+            j = int(t.j_index[f, k])
+            start = t.open_q[j]
+            q[:, j] = start + rng.uniform(0.0, fraction, n) * (target - start)
+    return q
+
+
+def sample_any(model: AnyHandModel, shape: ShapeClass, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n GRG particles (n, D)."""
+    t, lay = model.tables, model.layout
+    x = np.empty((n, lay.dims))
+    x[:, lay.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+    x[:, lay.standoff] = t.upper[lay.standoff] * rng.random(n) ** 1.5
+    x[:, lay.joints] = _preshape(model, n, rng, OPEN_FRACTION)
+    return x
+
+
+class AnyHandGenerator:
+    """GRG draws for the swarm (``draw``), with the verification test; counts evaluations."""
+
+    def __init__(self, model: AnyHandModel, shape: ShapeClass, rng: np.random.Generator,
+                 wrist_position: np.ndarray | None = None, should_stop: Callable[[], bool] | None = None):
+        self.model, self.shape, self.rng = model, shape, rng
+        self.wrist_position = wrist_position
+        self.should_stop = should_stop
+        self.evaluations = 0
+
+    def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Regenerate illegal fingers in bounded rounds: (x, good (n,) bool)."""
+        t, s = self.model.tables, self.model.settings
+        fraction = OPEN_FRACTION
+        good = np.zeros(len(x), dtype=bool)
+        for round_ in range(REGENERATE_ROUNDS + 1):
+            decoded = decode_any(self.model, x, self.wrist_position)
+            self.evaluations += len(x)
+            good = decoded.legal(s.max_penetration) & (decoded.n_contacts >= 2)
+            bad = decoded.finger_illegal(s.max_penetration) & ~good[:, None]
+            if round_ == REGENERATE_ROUNDS or not bad.any():
+                break
+            fraction *= REGENERATE_FACTOR
+            fresh = _preshape(self.model, len(x), self.rng, fraction)
+            for f in range(t.n_fingers):
+                joints = 4 + t.j_index[f, :int(t.j_count[f])]
+                rows = bad[:, f]
+                x[np.ix_(rows, joints)] = fresh[np.ix_(rows, joints - 4)]
+        return x, good
+
+    def draw(self, k: int) -> np.ndarray:
+        """k particles: valid ones first; filled with the last batch's others when the
+        bounded rounds find fewer. PlanningError when no draw decodes to a valid grasp."""
+        found: list[np.ndarray] = []
+        spare: np.ndarray | None = None
+        count = 0
+        for _ in range(DRAW_ROUNDS):
+            if count >= k or (self.should_stop is not None and self.should_stop()):
+                break
+            x, good = self._verified(sample_any(self.model, self.shape, DRAW_FACTOR * (k - count), self.rng))
+            found.append(x[good])
+            count += int(good.sum())
+            spare = x[~good]
+        valid = np.concatenate(found) if found else np.empty((0, self.model.layout.dims))
+        if len(valid) == 0 and not (self.should_stop is not None and self.should_stop()):
+            raise PlanningError(
+                f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "
+                f"{self.evaluations} candidates (shape class {self.shape.name}) and none made two legal pad "
+                "contacts; the object may be too large or too small for this hand")
+        if len(valid) >= k:
+            return valid[:k]
+        rest = spare if spare is not None and len(spare) else sample_any(self.model, self.shape, k, self.rng)
+        fill = rest[self.rng.integers(0, len(rest), k - len(valid))]
+        return np.concatenate([valid, fill]) if len(valid) else fill
