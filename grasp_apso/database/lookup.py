@@ -292,7 +292,7 @@ class GraspDatabase:
                                  obj_bvh, pose if obj_bvh is not None else None)
         if getattr(report, "hits_object", False):
             return -math.inf
-        return min(d, float(report.min_scene_distance))
+        return min(d, float(getattr(report, "scene_distance", math.inf)))
 
     def _finger_points(self, key: tuple[str, str], entry: _Entry) -> tuple[np.ndarray, np.ndarray]:
         """Finger points (n, 5, 4, 3) in the palm frame, closed and open (computed once);

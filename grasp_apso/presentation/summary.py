@@ -62,7 +62,7 @@ def why_not_valid(result: GraspResult) -> str:
     reasons = []
     if result.n_contacts < 2:
         reasons.append(f"only {result.n_contacts} fingertip contact{'' if result.n_contacts == 1 else 's'}")
-    if not result.fcl.legal:
+    if result.fcl is not None and not result.fcl.legal:
         reasons.append("the python-fcl collision check failed")
     if not reasons:
         reasons.append("a link penetrates the object or the hand is too close to the scene")
@@ -114,8 +114,25 @@ def approach_angle_from_above(approach: np.ndarray, up: np.ndarray) -> float:
 
 
 # ----------------------------------------------------------------------------- report
+def _general_fcl_text(report) -> str:
+    """A general hand's python-fcl report (:class:`grasp_apso.geometry.any_hand_fcl.AnyHandReport`)."""
+    if report is None:
+        return "not run (grasp_apso.geometry.any_hand_fcl not available)"
+    if report.legal:
+        return (f"legal: no link penetrates the object beyond {report.tolerance * 1000:g} mm, "
+                "no links collide")
+    parts = []
+    if report.deepest_penetration > report.tolerance:
+        parts.append(f"{report.deepest_link} {report.deepest_penetration * 1000:.1f} mm into the object")
+    if report.link_pairs_colliding:
+        parts.append("colliding links: " + ", ".join(f"{a}-{b}" for a, b in report.link_pairs_colliding))
+    return "NOT legal: " + "; ".join(parts)
+
+
 def _fcl_text(result: GraspResult) -> str:
     report = result.fcl
+    if report is None or hasattr(report, "links"):
+        return _general_fcl_text(report)
     if report.legal:
         return (f"legal: no link penetrates the object beyond {FCL_TOLERANCE_MM:g} mm, "
                 "no fingers collide")
@@ -207,6 +224,17 @@ def format_report(result: GraspResult, hand, friction: float,
     return "\n".join(lines + _pose_and_rest(result, friction, pose_note, up, hand))
 
 
+def _general_touching(result: GraspResult, hand) -> list[str]:
+    """A general hand's links that touch the object (python-fcl), except the pad links of
+    the fingers that make the contacts."""
+    report = result.fcl
+    if report is None or not hasattr(report, "touching"):
+        return []
+    fingers = {c.finger for c in result.contacts}
+    pads = {f.pad_link for f in hand.fingers if f.name in fingers}
+    return [link for link, t in zip(report.links, report.touching) if t and link not in pads]
+
+
 def _pose_and_rest(result: GraspResult, friction: float, pose_note: str, up: np.ndarray | None, hand) -> list[str]:
     """The report after the configuration: wrist pose, approach, contacts, quality."""
     lines: list[str] = []
@@ -230,7 +258,7 @@ def _pose_and_rest(result: GraspResult, friction: float, pose_note: str, up: np.
         lines.append("  (none)")
     lines.append("")
     fingers = ", ".join(c.finger for c in result.contacts) or "none"
-    touching = touching_links(result) if not general else []
+    touching = touching_links(result) if not general else _general_touching(result, hand)
     lines.append("Quality:")
     rows = [
         ("fitness", f"{result.fitness:.3f}", "maximised, in [0, 1] for a valid grasp (below 0: none found)"),
