@@ -116,3 +116,23 @@ def test_a_general_hand_s_rows_keep_its_joints_and_move_with_the_pose(paper_plan
         np.testing.assert_allclose(g.approach, normal / np.linalg.norm(normal), atol=1e-9)
         np.testing.assert_allclose(g.pre_grasp_pose[:3, 3], g.wrist_pose[:3, 3] - 0.05 * g.approach, atol=1e-9)
         assert g.joints.shape == (0, 4, 3)
+
+
+def test_batch_with_a_urdf_hand_writes_its_name_hash_and_joints(allegro, tmp_path):
+    from grasp_apso.database.batch import BatchConfig, run_batch
+
+    mesh = tmp_path / "cube.stl"
+    builtin("cube").mesh.export(mesh)
+    out = tmp_path / "allegro.db"
+    config = BatchConfig(out=str(out), options=PlanOptions(particles=16, iterations=6, max_grasps=2), seed=3,
+                         workers=1, progress="none", hand_path=allegro.path)
+    summary = run_batch([str(mesh)], config)
+    assert (summary.planned, summary.failed) == (1, 0), summary.failures
+    rows = pq.read_table(out / "grasps").to_pylist()
+    assert rows and {r["hand_name"] for r in rows} == {allegro.name}
+    assert {r["hand_hash"] for r in rows} == {allegro.hash}
+    assert all(len(r["joint_positions"]) == len(r["pre_grasp_positions"]) == 16 for r in rows)
+    assert len(GraspDatabase.open(out, hand=allegro)) == 1
+    assert len(GraspDatabase.open(out)) == 0  # the paper hand's node would not answer from them
+    again = run_batch([str(mesh)], config)  # resumable: the same hand and options are done
+    assert (again.planned, again.skipped) == (0, 1)

@@ -46,6 +46,7 @@ from matplotlib.patches import Patch
 
 from ..model.hand import FINGER_NAMES, HandModel, load_hand
 from ..model.planning_hand import is_general_hand
+from ..presentation.hand_geometry import finger_color
 from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR)
 from .any_hand_drawing import draw_any_hand, finger_legend, hand_axes, hand_mesh_mm, pad_radius_mm
@@ -227,7 +228,8 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
         if grasp.pre_joints is not None:
             draw_hand(ax, grasp.pre_joints, grasp.pre_palm, hand, faint=True)
         tubes = draw_hand(ax, grasp.joints, grasp.palm, hand, touching=grasp.touching)
-    draw_contacts(ax, grasp.contacts)
+    draw_contacts(ax, grasp.contacts, None if grasp.hand_tris is None else
+                  {f.name: finger_color(f.name, i) for i, f in enumerate(hand.fingers)})
     if grasp.approach is not None:
         draw_approach(ax, *grasp.approach, label=f"approach {grasp.approach_mm:.0f} mm" if label else None)
     pts = np.vstack(pts)
