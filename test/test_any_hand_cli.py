@@ -8,7 +8,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from hand_files import write_allegro_like
+from hand_files import urdf_actuated_joints as _urdf_actuated, write_allegro_like
 
 from grasp_apso.model import builtin
 from grasp_apso.model.hands.load import load_hand as load_any_hand
@@ -30,14 +30,6 @@ def _run(capsys, *argv):
     code = cli.main([*argv])
     out, err = capsys.readouterr()
     return code, out, err
-
-
-def _urdf_actuated(path):
-    """The URDF's own non-fixed, non-mimic joints in file order (independent of the loader)."""
-    import xml.etree.ElementTree as ET
-
-    return [j.get("name") for j in ET.parse(path).getroot().iter("joint")
-            if j.get("type") != "fixed" and j.find("mimic") is None]
 
 
 def test_planning_hand_chooses_by_suffix_and_names_its_identity(allegro):

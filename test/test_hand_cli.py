@@ -11,7 +11,7 @@ import pytest
 
 from grasp_apso.errors import HandDescriptionError
 from grasp_apso.tools.hand_cli import main
-from hand_files import write_allegro_like
+from hand_files import urdf_actuated_joints, write_allegro_like
 
 PAPER_YAML = Path(__file__).resolve().parents[1] / "grasp_apso" / "data" / "hand.yaml"
 
@@ -108,11 +108,7 @@ def test_node_plans_with_the_urdf_hand_it_is_given(context, allegro):
     hand = params.settings.hand
     assert isinstance(hand, AnyHand) and not isinstance(hand, PaperHand)
     assert params.settings["hand_description"] == str(allegro)
-    # Independent of the loader: the URDF's own non-fixed, non-mimic joints, in file order.
-    import xml.etree.ElementTree as ET
-
-    joints = [j.get("name") for j in ET.parse(allegro).getroot().iter("joint")
-              if j.get("type") != "fixed" and j.find("mimic") is None]
+    joints = urdf_actuated_joints(allegro)  # independent of the loader
     assert list(hand.actuated_joints) == joints and len(joints) == 16
     assert hand.spheres  # the search's sphere cover is built at start-up, not per request
 

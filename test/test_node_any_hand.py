@@ -6,7 +6,6 @@ squeeze), ``grasp_pose`` its root link; a grasp database written for that hand a
 node of that hand and is refused by a node of another hand.
 """
 import datetime as dt
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pyarrow as pa
@@ -18,7 +17,7 @@ rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
 
 from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
-from hand_files import write_allegro_like  # noqa: E402
+from hand_files import urdf_actuated_joints as _urdf_actuated, write_allegro_like  # noqa: E402
 from node_helpers import DISCOVERY_TIMEOUT, SpinningNode, identity_pose, wait_future  # noqa: E402
 
 from grasp_apso.database.schema import GRASP_SCHEMA, candidate_rows  # noqa: E402
@@ -31,12 +30,6 @@ from grasp_apso.search.planner import plan  # noqa: E402
 
 SMALL = dict(particles=16, iterations=6)
 CALL_TIMEOUT = 240.0
-
-
-def _urdf_actuated(path):
-    """The URDF's own non-fixed, non-mimic joints in file order (independent of the loader)."""
-    return [j.get('name') for j in ET.parse(path).getroot().iter('joint')
-            if j.get('type') != 'fixed' and j.find('mimic') is None]
 
 
 def _allegro_database(path, hand):

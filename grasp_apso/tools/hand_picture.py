@@ -33,7 +33,7 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from ..presentation.hand_geometry import EXTRA_FINGER_COLORS, finger_color
-from ..presentation.palette import CONTACT_COLOR, FINGER_COLORS, PALM_COLOR, rgb
+from ..presentation.palette import CONTACT_COLOR, PALM_COLOR, rgb
 from .view3d import (decimate_for_drawing, framing, nice_length, save, scale_bar_and_triad, screen_axes,
                      shaded_colors, transform, view_angles, zoom_to_content)
 
