@@ -26,7 +26,7 @@ import numpy as np
 
 from . import any_hand_kernels as hk
 from . import kernels
-from .any_hand_scene import scene_margins
+from .any_hand_scene import packed_scene, scene_margins
 from .any_hand_tables import HandTables, hand_tables
 from .contact_settings import ContactSettings
 from .decoder import _support_points
@@ -37,7 +37,7 @@ __all__ = ["AnyHandModel", "AnyDecoded", "make_any_hand_model", "root_poses", "d
 
 #: Group clearances above this (m) are lower bounds (culled look-ups): far above every
 #: tolerance the decoder decides with.
-CUTOFF = 0.008
+CUTOFF = 0.002
 #: Bisection steps after the coarse sweep: about 0.2 mm of fingertip travel.
 REFINE_STEPS = 6
 
@@ -58,6 +58,7 @@ class AnyHandModel:
     scene: object | None = field(default=None, repr=False)
     scene_clearance: float = 0.0
     approach_distance: float = 0.0
+    scene_arrays: tuple = field(default=(), repr=False)
 
     @property
     def lower(self) -> np.ndarray:
@@ -87,7 +88,8 @@ def with_any_scene(model: AnyHandModel, scene, clearance: float, approach_distan
     """The model with a scene check (``scene`` in the object frame; None or empty: unchanged)."""
     if scene is None or scene.is_empty:
         return model
-    return replace(model, scene=scene, scene_clearance=float(clearance), approach_distance=float(approach_distance))
+    return replace(model, scene=scene, scene_clearance=float(clearance), approach_distance=float(approach_distance),
+                   scene_arrays=packed_scene(scene))
 
 
 def root_poses(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> np.ndarray:
@@ -138,7 +140,8 @@ class AnyDecoded:
     penetration, blocked, link_contact, finger_collision : (P, F)
     palm_clearance : (P,) float, m
     scene_margin : (P,) float or None, m
-        Least distance of the hand to the scene minus the clearance (grasp and approach).
+        Least distance of the hand to the scene minus the clearance (grasp and approach);
+        checked only for the particles otherwise legal with two contacts (0 for the others).
     """
 
     closed: np.ndarray
@@ -237,9 +240,15 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     wrist[:, :3, :3] = rot @ t.basis
     margin = None
     if model.scene is not None:
-        open_poses = np.empty_like(poses)
-        hk.link_poses(q0, model.kin, open_poses)
-        margin = scene_margins(model, root, poses, open_poses)
+        # Only the particles otherwise legal with two contacts (the others are inactive or
+        # regenerated whatever the scene): the rest read 0 (not checked).
+        margin = np.zeros(n_p)
+        ok = ((contact.sum(axis=1) >= 2) & (palm >= -s.max_penetration) & ~(
+            blocked | collide | link_contact | (penetration > s.max_penetration)).any(axis=1))
+        if ok.any():
+            open_poses = np.empty((int(ok.sum()),) + poses.shape[1:])
+            hk.link_poses(np.ascontiguousarray(q0[ok]), model.kin, open_poses)
+            margin[ok] = scene_margins(model, root[ok], np.ascontiguousarray(poses[ok]), open_poses)
     return AnyDecoded(closed=closed, q_pre=q0, q=q, root=root, wrist=wrist, contact=contact,
                       contact_points=points, contact_normals=normals, tip_gap=tip_gap, pad_points=pad_pos,
                       penetration=penetration, blocked=blocked, link_contact=link_contact, finger_collision=collide,
