@@ -136,10 +136,11 @@ def test_returned_grasps_are_sound(hands, plans, hand_name):
             for q in (cand.joint_positions, cand.pre_grasp_positions, cand.squeeze_positions):
                 assert q.shape == (hand.n_joints,)
                 assert np.all(q >= hand.lower - 1e-9) and np.all(q <= hand.upper + 1e-9), (obj_name, seed)
-        if result.valid:
-            assert result.n_contacts >= 2
-            errors = _pad_errors(hand, result, obj.mesh)
-            assert max(errors) <= PAD_TOLERANCE, (obj_name, seed, errors)
+        for cand in result.candidates:
+            if cand.valid:
+                assert cand.n_contacts >= 2
+                errors = _pad_errors(hand, cand, obj.mesh)
+                assert max(errors) <= PAD_TOLERANCE, (obj_name, seed, cand.rank, errors)
         plane = table.planes[0]
         for cand in result.candidates:
             assert _table_distance(hand, cand.joint_positions, cand.wrist_pose, plane) >= OPTIONS.clearance - 1e-4, (

@@ -210,7 +210,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
     tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    contact = stopped & ~blocked & (pad_gap <= s.tolerance)
+    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance)
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
