@@ -33,10 +33,10 @@ import fcl
 import numpy as np
 
 from ..errors import InputError
-from ..model.hands.geometry import LinkGeometry
 from ..model.hands.model import HandModel
 from ..model.scene import Scene
-from .any_hand_shapes import TOUCH_EPS, HandShapes, ObjectShape, hand_shapes, object_shape
+from .any_hand_queries import object_distances, obstacle_distances, part_pair_distances, plane_distances
+from .any_hand_shapes import HandShapes, hand_shapes, object_shape
 # The scene's fcl objects, the pose/number validation and the approach tolerances are the paper hand's (one source of truth).
 from .hand_fcl import CONTACT_ZONE, MAX_STEPS, OBJECT_TOLERANCE, _nonnegative, _pose, _scene_geometry
 
@@ -47,23 +47,6 @@ __all__ = ["HandCollision", "AnyHandReport", "AnyApproachReport", "object_report
 TOUCH_TOLERANCE = 0.001
 #: Links of different fingers may overlap this much (m) before they collide (soft skins).
 ALLOWED_OVERLAP = 0.002
-_REQ = fcl.DistanceRequest()
-
-
-def _fcl_distance(a: fcl.CollisionObject, b: fcl.CollisionObject) -> float:
-    return float(fcl.distance(a, b, _REQ, fcl.DistanceResult()))
-
-
-def _to_frame(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Points (N, 3) given in the frame ``pose`` (4, 4) maps from -> parent frame."""
-    return points @ pose[:3, :3].T + pose[:3, 3]
-
-
-def _from_frame(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Points (N, 3) in the parent frame -> the frame ``pose`` (4, 4)."""
-    return (points - pose[:3, 3]) @ pose[:3, :3]
-
-
 class HandCollision:
     """The exact collision geometry of one hand, ready for python-fcl queries.
 
@@ -114,7 +97,7 @@ class HandCollision:
         if cached is None:
             poses = self.part_poses(self.hand.open_configuration(), np.eye(4))
             a, b = self.shapes.pair_candidates
-            hit = np.array([_part_pair_distance(self, poses, int(i), int(j)) < 0.0 for i, j in zip(a, b)], dtype=bool)
+            hit = part_pair_distances(self.shapes, self.place(poses), poses, a, b, 0.0) < 0.0
             cached = (a[hit], b[hit])
             self.shapes._default_pairs = cached  # benign race: every thread computes the same
         return cached
@@ -136,68 +119,6 @@ def _check(hc) -> HandCollision:
     if not isinstance(hc, HandCollision):
         raise InputError(f"hc: expected a HandCollision (or a HandModel), got {type(hc).__name__}", "hc")
     return hc
-
-
-# ------------------------------------------------------------------ depths from samples
-def _samples_world(hc: HandCollision, poses: np.ndarray, k: int) -> tuple[np.ndarray, float]:
-    points, inflate = hc.shapes.samples[k]
-    return _to_frame(poses[k], points), inflate
-
-
-def _part_sdf(hc: HandCollision, poses: np.ndarray, k: int, points: np.ndarray) -> np.ndarray:
-    """Exact signed distance (m) of points (N, 3), query frame, to part ``k``'s solid."""
-    geom = hc.shapes.geoms[k]
-    return geom.signed_distance(_to_frame(geom.origin, _from_frame(poses[k], points)))
-
-
-def _near_points(hc: HandCollision, poses: np.ndarray, k: int, points: np.ndarray) -> np.ndarray:
-    """The points (N, 3) within part ``k``'s bounding sphere."""
-    centre = _to_frame(poses[k], hc.shapes.bound_centre[k][None])[0]
-    return points[np.einsum("ij,ij->i", points - centre, points - centre) <= hc.shapes.bound_radius[k] ** 2]
-
-
-def _solid_pair(geom_a: LinkGeometry, pose_a: np.ndarray, samples_a, geom_b: LinkGeometry, pose_b: np.ndarray,
-                samples_b) -> float:
-    """Minus the overlap depth (m, <= 0) of two solids that touch: the deepest sample of
-    each inside the other (exact signed distances); poses are geometry frames (4, 4)."""
-    out = 0.0
-    for g_in, p_in, (points, inflate), p_out in ((geom_b, pose_b, samples_a, pose_a),
-                                                 (geom_a, pose_a, samples_b, pose_b)):
-        world = _to_frame(p_out, points)
-        sdf = g_in.signed_distance(_to_frame(g_in.origin, _from_frame(p_in, world)))
-        out = min(out, float((sdf - inflate).min()))
-    return out
-
-
-def _part_pair_distance(hc: HandCollision, poses: np.ndarray, a: int, b: int) -> float:
-    """Signed distance (m) between parts ``a`` and ``b`` at ``poses`` (negative: depth).
-    Never fcl's signed distance: its EPA hangs on overlapping capsules (python-fcl 0.7)."""
-    objs = hc.place(poses, (a, b))
-    d = _fcl_distance(objs[a], objs[b])
-    if d > TOUCH_EPS:
-        return d
-    s = hc.shapes
-    return _solid_pair(s.geoms[a], poses[a], s.samples[a], s.geoms[b], poses[b], s.samples[b])
-
-
-def _object_signed(hc: HandCollision, poses: np.ndarray, k: int, shape: ObjectShape, to_object: np.ndarray,
-                   d: float) -> float:
-    """Signed distance of part ``k`` to the object, given fcl's plain distance ``d``.
-
-    ``to_object`` (4, 4): query frame -> object frame. A part that fcl finds apart may lie
-    wholly inside the (hollow, to fcl) mesh, or hold the object wholly: one point decides."""
-    points, inflate = _samples_world(hc, poses, k)
-    local = _from_frame(to_object, points) if to_object is not None else points
-    if d > TOUCH_EPS:
-        if shape.distance(local[:1])[0] - inflate >= 0.0:
-            vertex = _to_frame(to_object, shape.vertices[:1]) if to_object is not None else shape.vertices[:1]
-            if _part_sdf(hc, poses, k, vertex)[0] >= 0.0:
-                return d
-    inside = float((shape.distance(local) - inflate).min())
-    verts = shape.vertices if to_object is None else _to_frame(to_object, shape.vertices)
-    near = _near_points(hc, poses, k, verts)
-    holds = float(_part_sdf(hc, poses, k, near).min()) if len(near) else math.inf
-    return min(inside, holds, 0.0)
 
 
 # ------------------------------------------------------------------ object report
@@ -256,20 +177,16 @@ def _link_min(hc: HandCollision, part_values: np.ndarray) -> np.ndarray:
 def self_collisions(hc: HandCollision, poses: np.ndarray, allowed_overlap: float = ALLOWED_OVERLAP
                     ) -> tuple[tuple[str, str], ...]:
     """Link pairs (names) of :meth:`HandCollision.checked_pairs` overlapping by more than
-    ``allowed_overlap`` (m) at part ``poses`` (K, 4, 4); bounding spheres first, in one batch."""
+    ``allowed_overlap`` (m) at part ``poses`` (K, 4, 4), placed in this thread's objects."""
     a, b = hc.checked_pairs()
     if len(a) == 0:
         return ()
-    s = hc.shapes
-    centre = np.einsum("kij,kj->ki", poses[:, :3, :3], s.bound_centre) + poses[:, :3, 3]
-    gap = np.linalg.norm(centre[a] - centre[b], axis=1) - s.bound_radius[a] - s.bound_radius[b]
-    pairs = []
-    for i in np.flatnonzero(gap < -allowed_overlap):
-        la, lb = hc.links[s.part_link[a[i]]], hc.links[s.part_link[b[i]]]
-        if (la, lb) in pairs:
-            continue
-        if _part_pair_distance(hc, poses, int(a[i]), int(b[i])) < -allowed_overlap:
-            pairs.append((la, lb))
+    d = part_pair_distances(hc.shapes, hc.shapes.objects(), poses, a, b, -allowed_overlap)
+    pairs: list[tuple[str, str]] = []
+    for i in np.flatnonzero(d < -allowed_overlap):
+        key = (hc.links[hc.shapes.part_link[a[i]]], hc.links[hc.shapes.part_link[b[i]]])
+        if key not in pairs:
+            pairs.append(key)
     return tuple(pairs)
 
 
@@ -302,20 +219,14 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     shape = object_shape(obj)
     poses = hc.part_poses(q, root)
     objs = hc.place(poses)
-    target = shape.collision_object()
-    target.setTransform(fcl.Transform())
-    part_d = np.empty(len(objs))
-    for k, o in enumerate(objs):
-        part_d[k] = _object_signed(hc, poses, k, shape, None, _fcl_distance(o, target))
-    dist = _link_min(hc, part_d)
+    dist = _link_min(hc, object_distances(hc.shapes, objs, poses, np.arange(len(objs)), shape, None))
     worst = int(np.argmin(dist))
     pairs = self_collisions(hc, poses, overlap)
-    fingers = hc.shapes.finger
     names = [f.name for f in hc.hand.fingers]
-    finger_pairs = []
+    finger_pairs: list[tuple[str, str]] = []
     for la, lb in pairs:
-        fa, fb = fingers[hc.links.index(la)], fingers[hc.links.index(lb)]
-        key = tuple(sorted((names[fa], names[fb]), key=names.index))
+        fa, fb = hc.shapes.finger[hc.links.index(la)], hc.shapes.finger[hc.links.index(lb)]
+        key = (names[min(fa, fb)], names[max(fa, fb)])
         if fa != fb and key not in finger_pairs:
             finger_pairs.append(key)
     dist.flags.writeable = False
@@ -324,3 +235,157 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     return AnyHandReport(links=hc.links, link_distance=dist, touching=touching,
                          deepest_penetration=float(max(0.0, -dist[worst])), deepest_link=hc.links[worst],
                          link_pairs_colliding=pairs, finger_pairs_colliding=tuple(finger_pairs), tolerance=tol)
+
+
+# ------------------------------------------------------------------ scene
+def _scene(scene) -> Scene:
+    if not isinstance(scene, Scene):
+        raise InputError(f"scene: expected a Scene, got {type(scene).__name__}", "scene")
+    return scene
+
+
+def scene_distance(hc: HandCollision | HandModel, q: np.ndarray, root_pose: np.ndarray, scene: Scene) -> float:
+    """Least distance (m) of the whole hand at ``q`` to the scene's support planes and
+    obstacles (negative: the depth of the deepest part; ``inf`` for an empty scene).
+
+    q : (n,) float; root_pose : (4, 4), the root link in the scene's frame."""
+    hc = _check(hc)
+    root = _pose(root_pose, "root_pose")
+    scene = _scene(scene)
+    poses = hc.part_poses(q, root)
+    if scene.is_empty:
+        return math.inf
+    best = float(plane_distances(hc.shapes, poses, scene.planes).min()) if len(scene.planes) else math.inf
+    if scene.obstacles:
+        objs = hc.place(poses)
+        obstacles = obstacle_distances(hc.shapes, objs, poses, np.arange(len(poses)), scene,
+                                       _scene_geometry(scene).obstacles, best)
+        best = min(best, float(obstacles.min()))
+    return best
+
+
+# ------------------------------------------------------------------ approach
+@dataclass(frozen=True)
+class AnyApproachReport:
+    """Result of :func:`approach_report`.
+
+    Attributes
+    ----------
+    clear : bool
+        ``min_scene_distance >= clearance`` and not ``hits_object``.
+    min_scene_distance : float, m
+        Least whole-hand distance to the scene over the approach (planes: over the whole
+        segment; obstacles: at the steps), negative: a penetration; ``inf``: empty scene.
+    min_object_distance : float, m
+        Least signed distance of the hand to the object over the steps (``inf``: no object).
+    hits_object : bool
+        The open hand touches the object farther than :data:`.hand_fcl.CONTACT_ZONE` before
+        the grasp, or presses into it deeper than :data:`.hand_fcl.OBJECT_TOLERANCE` within it.
+    hit_link : str
+        The deepest link at the farthest such step ("" when none).
+    hit_at : float, m
+        How far before the grasp that step is (nan when none).
+    steps : int
+        Hand poses checked, the pre-grasp and the grasp included: ``ceil(distance / step) + 1``.
+    """
+
+    clear: bool
+    min_scene_distance: float
+    min_object_distance: float
+    hits_object: bool
+    hit_link: str
+    hit_at: float
+    steps: int
+
+
+def _unit(vector, field: str) -> np.ndarray:
+    v = np.asarray(vector, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
+        raise InputError(f"{field}: expected a finite non-zero (3,) vector, got {v.tolist()}", field)
+    return v / np.linalg.norm(v)
+
+
+def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose: np.ndarray, approach: np.ndarray,
+                    distance: float, scene: Scene, obj=None, obj_pose: np.ndarray | None = None,
+                    step: float = 0.005, clearance: float = 0.0) -> AnyApproachReport:
+    """The open hand (``q_pre``) moved in a straight line from the pre-grasp (``root_pose``
+    retreated ``distance`` along minus ``approach``) to ``root_pose``, checked at
+    ``ceil(distance / step) + 1`` equal steps (each at most ``step``).
+
+    Parameters
+    ----------
+    hc : HandCollision (or a HandModel)
+    q_pre : (n,) float
+        The open pre-shape, over ``hand.actuated_joints``.
+    root_pose : (4, 4) float
+        The root link at the grasp, scene frame.
+    approach : (3,) float
+        The direction of motion (scene frame; normalised here).
+    distance : float, m, >= 0
+    scene : Scene
+    obj : GraspObject, trimesh.Trimesh, ObjectShape or None (no object check)
+    obj_pose : (4, 4) float or None
+        The object frame in the scene frame (None: the identity).
+    step : float, m, > 0
+    clearance : float, m, >= 0
+
+    Raises
+    ------
+    InputError
+        A bad argument, named; more than :data:`.hand_fcl.MAX_STEPS` poses.
+    """
+    hc = _check(hc)
+    root = _pose(root_pose, "root_pose")
+    a = _unit(approach, "approach")
+    dist = _nonnegative(distance, "distance")
+    step = _nonnegative(step, "step")
+    clear_min = _nonnegative(clearance, "clearance")
+    if step <= 0:
+        raise InputError("step: must be > 0", "step")
+    scene = _scene(scene)
+    n = int(math.ceil(dist / step - 1e-12)) if dist > 0 else 0
+    if n + 1 > MAX_STEPS:
+        raise InputError(f"step: {n + 1} poses for distance {dist} m, at most {MAX_STEPS}", "step")
+    shape = None if obj is None else object_shape(obj)
+    opose = np.eye(4) if obj_pose is None else _pose(obj_pose, "obj_pose")
+    start = hc.part_poses(q_pre, root, "q_pre")
+    count = len(start)
+    min_scene = min_obj = math.inf
+    if len(scene.planes):  # a translation by s moves each plane distance by -s (n . a): exact
+        planes = plane_distances(hc.shapes, start, scene.planes)
+        min_scene = float(min(planes.min(), (planes - dist * (scene.planes[:, :3] @ a)).min()))
+    fcl_obstacles = _scene_geometry(scene).obstacles if scene.obstacles else None
+    last_obs, at_obs = np.full(count, -math.inf), np.zeros(count)
+    last_obj, at_obj = np.full(count, -math.inf), np.zeros(count)
+    hit_at, hit_link = -math.inf, ""
+    none = np.empty(0, dtype=np.int64)
+    for i in range(n + 1):  # from the grasp back: the nearest poses set the minima first
+        s = dist * i / n if n else 0.0
+        # A translation by t changes a distance by at most t: a part whose lower bound
+        # cannot lower a minimum (nor touch the object) is not measured at this step.
+        obs_parts = none if fcl_obstacles is None else np.flatnonzero(last_obs - np.abs(s - at_obs) < min_scene)
+        obj_parts = none
+        if shape is not None:
+            bound = last_obj - np.abs(s - at_obj)
+            obj_parts = np.flatnonzero((bound <= 0.0) | (bound < min_obj))
+        if not (len(obs_parts) or len(obj_parts)):
+            continue
+        poses = start.copy()
+        poses[:, :3, 3] -= s * a
+        objs = hc.place(poses, np.union1d(obs_parts, obj_parts))
+        if len(obs_parts):
+            d = obstacle_distances(hc.shapes, objs, poses, obs_parts, scene, fcl_obstacles, min_scene)
+            last_obs[obs_parts], at_obs[obs_parts] = d, s
+            min_scene = min(min_scene, float(d.min()))
+        if len(obj_parts):
+            d = object_distances(hc.shapes, objs, poses, obj_parts, shape, opose)
+            last_obj[obj_parts], at_obj[obj_parts] = d, s
+            min_obj = min(min_obj, float(d.min()))
+            bad = d < -OBJECT_TOLERANCE if s <= CONTACT_ZONE + 1e-12 else d <= 0.0
+            if bad.any() and s > hit_at:
+                hit_at = s
+                hit_link = hc.links[hc.shapes.part_link[obj_parts[np.argmin(np.where(bad, d, np.inf))]]]
+    hits = hit_at > -math.inf
+    return AnyApproachReport(clear=bool(min_scene >= clear_min and not hits), min_scene_distance=float(min_scene),
+                             min_object_distance=float(min_obj), hits_object=bool(hits), hit_link=hit_link,
+                             hit_at=float(hit_at) if hits else math.nan, steps=n + 1)

@@ -43,7 +43,7 @@ from ..model.hands.model import HandModel
 from .collision import BVH_BYTES_PER_TRIANGLE, mesh_bvh, object_bvh
 
 __all__ = ["HandShapes", "ObjectShape", "hand_shapes", "object_shape", "SAMPLE_SPACING", "MAX_SAMPLES",
-           "TOUCH_EPS", "fcl_geometry"]
+           "TOUCH_EPS", "fcl_geometry", "local_samples"]
 
 #: Largest gap (m) between the surface samples of a box, cylinder or mesh part.
 SAMPLE_SPACING = 0.0015
@@ -68,7 +68,7 @@ def fcl_geometry(geom: LinkGeometry):
     return mesh_bvh(geom.mesh)
 
 
-def _local_samples(geom: LinkGeometry) -> tuple[np.ndarray, float]:
+def local_samples(geom: LinkGeometry) -> tuple[np.ndarray, float]:
     """(points (S, 3) in the GEOMETRY frame, inflation m): the solid is the set of points
     within ``inflation`` of the samples' hull / surface (see the module docstring)."""
     if geom.kind == "sphere":
@@ -156,6 +156,8 @@ class HandShapes:
         self.geoms = tuple(geoms)
         self.origins = np.array([g.origin for g in geoms]).reshape(-1, 4, 4)
         self.primitive = np.array([g.kind in _PRIMITIVES for g in geoms], dtype=bool)
+        #: spheres and capsules: a segment along z (half length ``sup_axial``) with a radius
+        self.rounded = np.array([g.kind in ("sphere", "capsule") for g in geoms], dtype=bool)
         self.fcl_geometries = tuple(fcl_geometry(g) for g in geoms)
         bounds = [_bounding_sphere(g) for g in geoms]
         self.bound_centre = np.array([b[0] for b in bounds]).reshape(-1, 3)
@@ -205,7 +207,7 @@ class HandShapes:
     @cached_property
     def samples(self) -> tuple[tuple[np.ndarray, float], ...]:
         """Per part: (points (S, 3) link frame, inflation m), see the module docstring."""
-        return tuple(_local_samples(g) for g in self.geoms)
+        return tuple(local_samples(g) for g in self.geoms)
 
     @cached_property
     def pair_candidates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -246,6 +248,9 @@ class ObjectShape:
         self.bvh = mesh_bvh(mesh) if bvh is None else bvh
         self.distance = MeshDistance(mesh)
         self.bounds = np.asarray(mesh.bounds, dtype=float)
+        #: a sphere holding the object (object frame): only samples inside it can be inside
+        self.centre = 0.5 * (self.bounds[0] + self.bounds[1])
+        self.radius = float(np.linalg.norm(self.vertices - self.centre, axis=1).max())
         self.nbytes = (BVH_BYTES_PER_TRIANGLE + 400) * len(mesh.faces) + 48 * len(mesh.vertices)
 
     def collision_object(self) -> fcl.CollisionObject:
