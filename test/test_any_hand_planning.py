@@ -3,8 +3,9 @@ the Inspire hand, on the built-in cube, sphere and barrel and the real mug, each
 a table.
 
 Every returned grasp is checked independently of the planner's code: joint limits from the
-hand model; the pads (posed by ``hand.link_transforms`` at the returned posture and
-``wrist_pose``) on the object's surface within 2 mm by trimesh's exact proximity; no link
+hand model; the pads (spheres of ``pad_radius`` whose surface passes through the pad point,
+posed by ``hand.link_transforms`` at the returned posture and ``wrist_pose``) on the
+object's surface within 2 mm by trimesh's exact proximity; no link
 within the clearance of the table by python-fcl on each link's exact collision geometry
 (built here from ``hand.collision``); the same seed gives the same result.
 """
@@ -85,13 +86,22 @@ def _table_distance(hand, q: np.ndarray, root: np.ndarray, plane: np.ndarray) ->
     return best
 
 
+def _pad_sphere(hand, finger) -> np.ndarray:
+    """The pad sphere's centre in the pad link's frame, from the exact geometry (trimesh):
+    the pad point moved ``pad_radius`` inward along the face normal nearest to it."""
+    mesh = trimesh.util.concatenate([g.to_trimesh() for g in hand.collision[finger.pad_link]])
+    _, _, face = trimesh.proximity.closest_point(mesh, np.asarray(finger.pad_center, float)[None])
+    return np.asarray(finger.pad_center) - finger.pad_radius * mesh.face_normals[face[0]]
+
+
 def _pad_errors(hand, result, mesh: trimesh.Trimesh) -> list[float]:
-    """|distance of each contact pad's centre to the surface - pad radius| (m)."""
+    """|distance of each contact finger's pad sphere centre to the object's surface - pad radius| (m):
+    how far the pad's surface is from the object's."""
     poses = hand.link_transforms(result.joint_positions)
     out = []
     for contact in result.contacts:
         finger = hand.finger(contact.finger)
-        centre = result.wrist_pose @ poses[finger.pad_link] @ np.append(finger.pad_center, 1.0)
+        centre = result.wrist_pose @ poses[finger.pad_link] @ np.append(_pad_sphere(hand, finger), 1.0)
         _, distance, _ = trimesh.proximity.closest_point(mesh, centre[None, :3])
         out.append(abs(float(distance[0]) - finger.pad_radius))
     return out

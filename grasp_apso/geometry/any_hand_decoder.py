@@ -6,9 +6,11 @@ palm normal aims at the object's centre of mass, with the object's support along
 normal ``clearance + standoff`` in front of the palm face; close each finger from its
 pre-shape along its closing senses (one parameter ``s`` per finger, couplings applied)
 until one of its link spheres meets the surface (:func:`.any_hand_kernels.close_fingers`).
-A finger is in contact when its pad sphere is then within the contact tolerance of the
-surface (the contact point: the pad centre projected on the surface along the gradient;
-the normal: the outward gradient); a finger without contact goes back to its pre-shape.
+A finger is in contact when its pad sphere (radius ``pad_radius``, its surface through the
+pad point ``Finger.pad_center``: :func:`.any_hand_tables.pad_sphere_center`) is then within
+the contact tolerance of the object's surface, either side (the contact point: the
+sphere's centre projected on the surface along the gradient; the normal: the outward
+gradient); a finger without contact goes back to its pre-shape.
 Illegal: a finger penetrating at its pre-shape (blocked), a link deeper than
 ``max_penetration``, a non-pad link touching (precision grasps), spheres of different
 fingers overlapping, the palm (root and non-finger links) penetrating, and with a scene a
@@ -134,9 +136,9 @@ class AnyDecoded:
         the shape factor's wrist.
     contact : (P, F) bool; contact_points, contact_normals : (P, F, 3)
     tip_gap : (P, F) float, m
-        The pad's clearance where the closing stopped (guides toward contact).
+        The pad sphere's clearance where the closing stopped (guides toward contact).
     pad_points : (P, F, 3) float, m
-        The pad centres at the grasp.
+        The pad spheres' centres at the grasp.
     penetration, blocked, link_contact, finger_collision : (P, F)
     palm_clearance : (P,) float, m
     scene_margin : (P,) float or None, m

@@ -169,7 +169,8 @@ def _set_closing(q, q0, f, K, s):
 
 @_jit
 def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
-    """Pad centre (object frame) into pad_pos (3,); returns its clearance (sdf - pad radius)."""
+    """Pad sphere's centre (object frame) into pad_pos (3,); returns its clearance (sdf -
+    pad radius, m): 0 when the pad touches the surface."""
     _point(rot, trans, poses[K[_PADL][f]], K[_PADC][f], pad_pos)
     return _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing,
                           pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]

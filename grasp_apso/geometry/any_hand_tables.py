@@ -102,7 +102,7 @@ class HandTables:
     sph_center: np.ndarray       # (S, 3) link frame
     sph_radius: np.ndarray       # (S,)
     pad_local: np.ndarray        # (F,) int, finger-local index of the pad link
-    pad_center: np.ndarray       # (F, 3) pad link frame
+    pad_center: np.ndarray       # (F, 3) pad link frame: the pad sphere's centre (pad_sphere_center)
     pad_radius: np.ndarray       # (F,)
     j_count: np.ndarray          # (F,) int
     j_index: np.ndarray          # (F, Jmax) int, into q
@@ -213,7 +213,8 @@ def _build(hand) -> HandTables:
         palm_groups.extend(range(first, first + count))
         palm_pose.extend([rest[0, i]] * count)
 
-    pads = [(finger_links[f].index(fg.pad_link), fg.pad_center, fg.pad_radius) for f, fg in enumerate(fingers)]
+    pads = [(finger_links[f].index(fg.pad_link), pad_sphere_center(hand, fg), fg.pad_radius)
+            for f, fg in enumerate(fingers)]
     jmax = max(len(fg.joints) for fg in fingers)
     j_count = np.array([len(fg.joints) for fg in fingers])
     j_index = np.zeros((nf, jmax), np.int64)
@@ -265,6 +266,25 @@ def _build(hand) -> HandTables:
         palm_pose=_ro(np.reshape(palm_pose, (-1, 4, 4))), pairs=_ro(pairs, np.int64).reshape(-1, 4),
         basis=_ro(basis), grasp_center=_ro(center), open_q=_ro(q_open),
     )
+
+
+def pad_sphere_center(hand, finger) -> np.ndarray:
+    """The centre (3,) of a finger's pad sphere in its pad link's frame: the pad point
+    (``finger.pad_center``, on the link's surface) moved ``pad_radius`` inward along the
+    surface normal there (the gradient of the link's exact signed distance), so that the
+    sphere's surface is the pad's: it touches the object at the pad."""
+    from ..model.hands.spheres import union_signed_distance
+
+    geoms = hand.collision[finger.pad_link]
+    p = np.asarray(finger.pad_center, float)
+    h = 1e-4
+    grad = np.array([union_signed_distance(geoms, (p + h * e)[None])[0] - union_signed_distance(geoms, (p - h * e)[None])[0]
+                     for e in np.eye(3)])
+    norm = np.linalg.norm(grad)
+    if norm < 1e-9:
+        raise HandDescriptionError(f"hand {hand.name!r}: no surface normal at the pad of finger {finger.name!r}",
+                                   field="pad_center")
+    return p - finger.pad_radius * grad / norm
 
 
 def _bound(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, float]:
