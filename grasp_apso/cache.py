@@ -198,6 +198,8 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "normal_spread": CacheLimit(8, 256 * _MB),   # geometry.normal_spread: (mesh hash, options, radius)
     "mesh_bvh": CacheLimit(8, 128 * _MB),        # geometry.collision: mesh hash
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
+    "hand_collision": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: (hand source hash, geometry digest)
+    "object_distance": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)
 }
 
 _REGISTRY: dict[str, BoundedCache] = {}

@@ -6,9 +6,11 @@ palm normal aims at the object's centre of mass, with the object's support along
 normal ``clearance + standoff`` in front of the palm face; close each finger from its
 pre-shape along its closing senses (one parameter ``s`` per finger, couplings applied)
 until one of its link spheres meets the surface (:func:`.any_hand_kernels.close_fingers`).
-A finger is in contact when its pad sphere is then within the contact tolerance of the
-surface (the contact point: the pad centre projected on the surface along the gradient;
-the normal: the outward gradient); a finger without contact goes back to its pre-shape.
+A finger is in contact when its pad sphere (radius ``pad_radius``, its surface through the
+pad point ``Finger.pad_center``: :func:`.any_hand_tables.pad_sphere_center`) is then within
+the contact tolerance of the object's surface, either side (the contact point: the
+sphere's centre projected on the surface along the gradient; the normal: the outward
+gradient); a finger without contact goes back to its pre-shape.
 Illegal: a finger penetrating at its pre-shape (blocked), a link deeper than
 ``max_penetration``, a non-pad link touching (precision grasps), spheres of different
 fingers overlapping, the palm (root and non-finger links) penetrating, and with a scene a
@@ -26,7 +28,7 @@ import numpy as np
 
 from . import any_hand_kernels as hk
 from . import kernels
-from .any_hand_scene import scene_margins
+from .any_hand_scene import packed_scene, scene_margins
 from .any_hand_tables import HandTables, hand_tables
 from .contact_settings import ContactSettings
 from .decoder import _support_points
@@ -37,7 +39,7 @@ __all__ = ["AnyHandModel", "AnyDecoded", "make_any_hand_model", "root_poses", "d
 
 #: Group clearances above this (m) are lower bounds (culled look-ups): far above every
 #: tolerance the decoder decides with.
-CUTOFF = 0.008
+CUTOFF = 0.002
 #: Bisection steps after the coarse sweep: about 0.2 mm of fingertip travel.
 REFINE_STEPS = 6
 
@@ -58,6 +60,7 @@ class AnyHandModel:
     scene: object | None = field(default=None, repr=False)
     scene_clearance: float = 0.0
     approach_distance: float = 0.0
+    scene_arrays: tuple = field(default=(), repr=False)
 
     @property
     def lower(self) -> np.ndarray:
@@ -87,7 +90,8 @@ def with_any_scene(model: AnyHandModel, scene, clearance: float, approach_distan
     """The model with a scene check (``scene`` in the object frame; None or empty: unchanged)."""
     if scene is None or scene.is_empty:
         return model
-    return replace(model, scene=scene, scene_clearance=float(clearance), approach_distance=float(approach_distance))
+    return replace(model, scene=scene, scene_clearance=float(clearance), approach_distance=float(approach_distance),
+                   scene_arrays=packed_scene(scene))
 
 
 def root_poses(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> np.ndarray:
@@ -132,13 +136,14 @@ class AnyDecoded:
         the shape factor's wrist.
     contact : (P, F) bool; contact_points, contact_normals : (P, F, 3)
     tip_gap : (P, F) float, m
-        The pad's clearance where the closing stopped (guides toward contact).
+        The pad sphere's clearance where the closing stopped (guides toward contact).
     pad_points : (P, F, 3) float, m
-        The pad centres at the grasp.
+        The pad spheres' centres at the grasp.
     penetration, blocked, link_contact, finger_collision : (P, F)
     palm_clearance : (P,) float, m
     scene_margin : (P,) float or None, m
-        Least distance of the hand to the scene minus the clearance (grasp and approach).
+        Least distance of the hand to the scene minus the clearance (grasp and approach);
+        checked only for the particles otherwise legal with two contacts (0 for the others).
     """
 
     closed: np.ndarray
@@ -207,7 +212,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
     tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    contact = stopped & ~blocked & (pad_gap <= s.tolerance)
+    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance)
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
@@ -237,9 +242,15 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     wrist[:, :3, :3] = rot @ t.basis
     margin = None
     if model.scene is not None:
-        open_poses = np.empty_like(poses)
-        hk.link_poses(q0, model.kin, open_poses)
-        margin = scene_margins(model, root, poses, open_poses)
+        # Only the particles otherwise legal with two contacts (the others are inactive or
+        # regenerated whatever the scene): the rest read 0 (not checked).
+        margin = np.zeros(n_p)
+        ok = ((contact.sum(axis=1) >= 2) & (palm >= -s.max_penetration) & ~(
+            blocked | collide | link_contact | (penetration > s.max_penetration)).any(axis=1))
+        if ok.any():
+            open_poses = np.empty((int(ok.sum()),) + poses.shape[1:])
+            hk.link_poses(np.ascontiguousarray(q0[ok]), model.kin, open_poses)
+            margin[ok] = scene_margins(model, root[ok], np.ascontiguousarray(poses[ok]), open_poses)
     return AnyDecoded(closed=closed, q_pre=q0, q=q, root=root, wrist=wrist, contact=contact,
                       contact_points=points, contact_normals=normals, tip_gap=tip_gap, pad_points=pad_pos,
                       penetration=penetration, blocked=blocked, link_contact=link_contact, finger_collision=collide,

@@ -26,7 +26,7 @@ _jit = numba.njit(cache=True, nogil=True)
 
 # indices into the kinematic tuple (see kin())
 _A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
-_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT = range(12, 26)
+_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV = range(12, 29)
 
 
 def kin(t) -> tuple:
@@ -34,7 +34,7 @@ def kin(t) -> tuple:
     return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
             t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
             t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,
-            t.j_index, t.j_target)
+            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving)
 
 
 @_jit
@@ -134,10 +134,23 @@ def _groups_clearance(values, origin, spacing, rot, trans, pose, g0, g1, K, cuto
 
 
 @_jit
-def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, link_out, c):
-    """Least clearance over finger f's links (posed), per link into link_out (Lmax,)."""
+def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, link_out, c, moving_only=False):
+    """Least clearance over finger f's links (posed), per link into link_out (Lmax,);
+    ``moving_only``: only the links the closing moves (the others keep link_out)."""
     best = np.inf
+    ox, oy, oz = origin[0], origin[1], origin[2]
     for l in range(K[_NL][f]):
+        if moving_only and K[_MOV][f, l] == 0:
+            continue
+        if K[_LR][f, l] < 0.0:
+            link_out[l] = np.inf
+            continue
+        _point(rot, trans, poses[l], K[_LC][f, l], c)
+        d = _grid_distance(values, ox, oy, oz, 1.0 / spacing, spacing, c[0], c[1], c[2]) - K[_LR][f, l]
+        if d > cutoff:
+            link_out[l] = d
+            best = min(best, d)
+            continue
         g0 = K[_GS][f, l]
         d = _groups_clearance(values, origin, spacing, rot, trans, poses[l], g0, g0 + K[_GC][f, l], K, cutoff, c)
         link_out[l] = d
@@ -156,7 +169,8 @@ def _set_closing(q, q0, f, K, s):
 
 @_jit
 def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
-    """Pad centre (object frame) into pad_pos (3,); returns its clearance (sdf - pad radius)."""
+    """Pad sphere's centre (object frame) into pad_pos (3,); returns its clearance (sdf -
+    pad radius, m): 0 when the pad touches the surface."""
     _point(rot, trans, poses[K[_PADL][f]], K[_PADC][f], pad_pos)
     return _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing,
                           pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]
@@ -191,6 +205,10 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
             finger_poses(q, f, K, poses, tmp, local)
             c0 = _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c)
             start_clear[p, f] = c0
+            fixed = np.inf  # the links the closing does not move keep their clearance
+            for l in range(K[_NL][f]):
+                if K[_MOV][f, l] == 0:
+                    fixed = min(fixed, lc[l])
             s = 0.0
             met = c0 <= 0.0
             if not met:
@@ -199,7 +217,8 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     sk = k / coarse
                     _set_closing(q, q0[p], f, K, sk)
                     finger_poses(q, f, K, poses, tmp, local)
-                    if _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c) <= 0.0:
+                    if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c,
+                                                    True)) <= 0.0:
                         hi = sk
                         break
                     lo = sk
@@ -211,7 +230,8 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                         mid = 0.5 * (lo + hi)
                         _set_closing(q, q0[p], f, K, mid)
                         finger_poses(q, f, K, poses, tmp, local)
-                        if _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c) <= 0.0:
+                        if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc,
+                                                        c, True)) <= 0.0:
                             hi = mid
                         else:
                             lo = mid
@@ -274,6 +294,11 @@ def finger_overlaps(poses, pairs, K, allowed, out):
                 continue
             hit = False
             p1, p2 = poses[p, f1, l1], poses[p, f2, l2]
+            _point(eye, zero, p1, K[_LC][f1, l1], a)
+            _point(eye, zero, p2, K[_LC][f2, l2], b)
+            d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            if d >= K[_LR][f1, l1] + K[_LR][f2, l2] - allowed:
+                continue
             for g1 in range(K[_GS][f1, l1], K[_GS][f1, l1] + K[_GC][f1, l1]):
                 _point(eye, zero, p1, K[_GRCEN][g1], a)
                 for g2 in range(K[_GS][f2, l2], K[_GS][f2, l2] + K[_GC][f2, l2]):

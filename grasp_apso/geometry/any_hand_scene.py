@@ -1,41 +1,125 @@
 """The scene check of a general hand's decoding: its collision spheres against the
-Scene's planes and obstacles (vectorised numpy over sphere groups).
+Scene's planes and obstacles (a compiled loop over particles).
 
 At the grasp (the grasp posture at the root pose) and along the approach (the open
 pre-shape at the root pose moved back along the palm normal by
 :data:`APPROACH_FRACTIONS` of the approach distance), the least of ``scene distance -
-radius - clearance`` over the hand's spheres. Groups of spheres are checked by their
-bounding sphere first; only groups within the clearance are resolved sphere by sphere.
+radius - clearance`` over the hand's spheres. A link's bounding sphere, then its groups'
+are checked first; only those within :data:`SCENE_CUTOFF` of the clearance are resolved
+sphere by sphere (above it the value is a lower bound: the particle is clear anyway).
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
+
+from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point
 
 __all__ = ["scene_margins", "APPROACH_FRACTIONS"]
 
 #: Where along the approach the open hand is checked (0 = at the grasp pose).
 APPROACH_FRACTIONS = (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0)
+#: Margins above this (m) are lower bounds (culled).
+SCENE_CUTOFF = 0.005
+
+_jit = numba.njit(cache=True, nogil=True)
 
 
-def _group_owners(t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Finger groups: (G,) group index, finger and finger-local link of each."""
-    g, f, l = [], [], []
-    for fi in range(t.n_fingers):
-        for li in range(int(t.n_links[fi])):
-            start, count = int(t.g_start[fi, li]), int(t.g_count[fi, li])
-            g.extend(range(start, start + count))
-            f.extend([fi] * count)
-            l.extend([li] * count)
-    return np.array(g, np.int64), np.array(f, np.int64), np.array(l, np.int64)
+@_jit
+def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half):
+    """Least signed distance (m) of point c (3,) to the scene's solids (as Scene.signed_distance)."""
+    best = np.inf
+    for k in range(planes.shape[0]):
+        best = min(best, planes[k, 0] * c[0] + planes[k, 1] * c[1] + planes[k, 2] * c[2] + planes[k, 3])
+    for k in range(box_inv.shape[0]):
+        out2, inside = 0.0, -np.inf
+        for i in range(3):
+            v = box_inv[k, i, 0] * c[0] + box_inv[k, i, 1] * c[1] + box_inv[k, i, 2] * c[2] + box_inv[k, i, 3]
+            q = abs(v) - box_half[k, i]
+            out2 += max(q, 0.0) ** 2
+            inside = max(inside, q)
+        best = min(best, math.sqrt(out2) + min(inside, 0.0))
+    for k in range(sphere_center.shape[0]):
+        d = math.sqrt((c[0] - sphere_center[k, 0]) ** 2 + (c[1] - sphere_center[k, 1]) ** 2
+                      + (c[2] - sphere_center[k, 2]) ** 2)
+        best = min(best, d - sphere_radius[k])
+    for k in range(cyl_inv.shape[0]):
+        v = np.empty(3)
+        for i in range(3):
+            v[i] = cyl_inv[k, i, 0] * c[0] + cyl_inv[k, i, 1] * c[1] + cyl_inv[k, i, 2] * c[2] + cyl_inv[k, i, 3]
+        radial = math.sqrt(v[0] ** 2 + v[1] ** 2) - cyl_radius[k]
+        axial = abs(v[2]) - cyl_half[k]
+        best = min(best, math.sqrt(max(radial, 0.0) ** 2 + max(axial, 0.0) ** 2) + min(max(radial, axial), 0.0))
+    return best
 
 
-def _group_poses(t, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every group's link pose (P, G, 4, 4) in the root frame and the group indices (G,)."""
-    g, f, l = _group_owners(t)
-    finger = poses[:, f, l]
-    palm = np.broadcast_to(t.palm_pose, (len(poses),) + t.palm_pose.shape)
-    return np.concatenate([finger, palm], axis=1), np.concatenate([g, t.palm_groups])
+@_jit
+def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
+    best = np.inf
+    for g in range(g0, g1):
+        _point(rot, trans, pose, K[_GRCEN][g], c)
+        d = _scene_distance(c, *S) - K[_GRR][g]
+        if d > cutoff:
+            best = min(best, d)
+            continue
+        for s in range(K[_GRS][g], K[_GRS][g] + K[_GRC][g]):
+            _point(rot, trans, pose, K[_SC][s], c)
+            best = min(best, _scene_distance(c, *S) - K[_SR][s])
+    return best
+
+
+@_jit
+def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c):
+    """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4))."""
+    best = np.inf
+    for f in range(K[_NL].shape[0]):
+        for l in range(K[_NL][f]):
+            if K[_LR][f, l] < 0.0:
+                continue
+            _point(rot, trans, poses[f, l], K[_LC][f, l], c)
+            d = _scene_distance(c, *S) - K[_LR][f, l]
+            if d > cutoff:
+                best = min(best, d)
+                continue
+            g0 = K[_GS][f, l]
+            best = min(best, _groups_margin(rot, trans, poses[f, l], g0, g0 + K[_GC][f, l], K, S, cutoff, c))
+    if palm_bound[3] >= 0.0:
+        eye = np.eye(4)
+        _point(rot, trans, eye, palm_bound[:3], c)
+        d = _scene_distance(c, *S) - palm_bound[3]
+        if d > cutoff:
+            return min(best, d)
+        for i in range(palm_groups.shape[0]):
+            g = palm_groups[i]
+            best = min(best, _groups_margin(rot, trans, palm_pose[i], g, g + 1, K, S, cutoff, c))
+    return best
+
+
+@_jit
+def scene_clearances(rot, trans, approach, backs, grasp_poses, open_poses, K, palm_bound, palm_groups, palm_pose,
+                     S, cutoff, out):
+    """Least margin (m, before the clearance) per particle (P,): the grasp posture at the
+    root, then the open pre-shape moved back by each of ``backs`` (m) along ``approach`` (P, 3)."""
+    c = np.empty(3)
+    t = np.empty(3)
+    for p in range(rot.shape[0]):
+        best = _hand_margin(rot[p], trans[p], grasp_poses[p], K, palm_bound, palm_groups, palm_pose, S, cutoff, c)
+        for k in range(backs.shape[0]):
+            for i in range(3):
+                t[i] = trans[p, i] - backs[k] * approach[p, i]
+            best = min(best, _hand_margin(rot[p], t, open_poses[p], K, palm_bound, palm_groups, palm_pose, S,
+                                          cutoff, c))
+        out[p] = best
+
+
+def packed_scene(scene) -> tuple:
+    """The scene's arrays in the order the kernels take them."""
+    p = scene.packed()
+    return tuple(np.ascontiguousarray(p[k], dtype=np.float64) for k in (
+        "planes", "box_inv", "box_half", "sphere_center", "sphere_radius", "cyl_inv", "cyl_radius", "cyl_half_height"))
 
 
 def scene_margins(model, root: np.ndarray, grasp_poses: np.ndarray, open_poses: np.ndarray) -> np.ndarray:
@@ -44,36 +128,12 @@ def scene_margins(model, root: np.ndarray, grasp_poses: np.ndarray, open_poses: 
     root : (P, 4, 4) object frame; grasp_poses, open_poses : (P, F, Lmax, 4, 4) the finger
     links in the root frame at the grasp posture and the pre-shape.
     """
-    t, scene, clearance = model.tables, model.scene, model.scene_clearance
-    rot, trans = root[:, :3, :3], root[:, :3, 3]
-    approach = rot @ t.basis[:, 2]
-    best = np.full(len(root), np.inf)
-    postures = [(grasp_poses, 0.0)] + [(open_poses, k * model.approach_distance) for k in APPROACH_FRACTIONS]
-    for poses, back in postures:
-        link, groups = _group_poses(t, poses)
-        centre = np.einsum("pgij,gj->pgi", link[..., :3, :3], t.grp_center[groups]) + link[..., :3, 3]
-        world = np.einsum("pij,pgj->pgi", rot, centre) + (trans - back * approach)[:, None]
-        margin = scene.signed_distance(world.reshape(-1, 3)).reshape(world.shape[:2]) - t.grp_radius[groups] - clearance
-        near_p, near_g = np.nonzero(margin < 0.0)
-        best = np.minimum(best, np.where(margin < 0.0, np.inf, margin).min(axis=1))
-        if near_p.size:
-            best = np.minimum(best, _sphere_margins(t, scene, clearance, rot, trans - back * approach, link,
-                                                    groups, near_p, near_g, len(root)))
-    return best
-
-
-def _sphere_margins(t, scene, clearance, rot, trans, link, groups, near_p, near_g, count) -> np.ndarray:
-    """The groups (near_p, near_g) resolved sphere by sphere: least margin per particle (P,)."""
-    g = groups[near_g]
-    counts = t.grp_count[g]
-    owner = np.repeat(np.arange(len(g)), counts)
-    first = np.cumsum(counts) - counts
-    sphere = t.grp_start[g][owner] + np.arange(counts.sum()) - first[owner]
-    pose = link[near_p[owner], near_g[owner]]
-    local = np.einsum("nij,nj->ni", pose[:, :3, :3], t.sph_center[sphere]) + pose[:, :3, 3]
-    p = near_p[owner]
-    world = np.einsum("nij,nj->ni", rot[p], local) + trans[p]
-    margin = scene.signed_distance(world) - t.sph_radius[sphere] - clearance
-    out = np.full(count, np.inf)
-    np.minimum.at(out, p, margin)
-    return out
+    t = model.tables
+    rot, trans = np.ascontiguousarray(root[:, :3, :3]), np.ascontiguousarray(root[:, :3, 3])
+    approach = np.ascontiguousarray(rot @ t.basis[:, 2])
+    backs = np.array(APPROACH_FRACTIONS) * model.approach_distance
+    out = np.empty(len(root))
+    clearance = model.scene_clearance
+    scene_clearances(rot, trans, approach, backs, grasp_poses, open_poses, model.kin, t.palm_bound, t.palm_groups,
+                     t.palm_pose, model.scene_arrays, clearance + SCENE_CUTOFF, out)
+    return out - clearance

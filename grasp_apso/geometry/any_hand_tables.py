@@ -33,10 +33,10 @@ GROUP_SIZE = 12
 #: Wrist angle bounds (rad): theta_x, theta_y, theta_z (the paper hand's, ``model.hand``).
 WRIST_LOWER = np.array([-np.pi, -np.pi / 2, -np.pi])
 WRIST_UPPER = np.array([np.pi, np.pi / 2, np.pi])
-#: Standoff range (m) from the hand's reach: this fraction of the pads' greatest height
-#: above the palm face over the closing, within [STANDOFF_MIN, STANDOFF_MAX].
-REACH_FRACTION = 0.7
-STANDOFF_MIN, STANDOFF_MAX = 0.02, 0.12
+#: Standoff range (m) from the hand's reach (half its longest finger): this fraction of
+#: it, within [STANDOFF_MIN, STANDOFF_MAX].
+REACH_FRACTION = 1.0
+STANDOFF_MIN, STANDOFF_MAX = 0.03, 0.12
 
 _CACHE: BoundedCache = BoundedCache(max_entries=16, max_bytes=256 * 1024 * 1024)
 
@@ -102,11 +102,15 @@ class HandTables:
     sph_center: np.ndarray       # (S, 3) link frame
     sph_radius: np.ndarray       # (S,)
     pad_local: np.ndarray        # (F,) int, finger-local index of the pad link
-    pad_center: np.ndarray       # (F, 3) pad link frame
+    pad_center: np.ndarray       # (F, 3) pad link frame: the pad sphere's centre (pad_sphere_center)
     pad_radius: np.ndarray       # (F,)
     j_count: np.ndarray          # (F,) int
     j_index: np.ndarray          # (F, Jmax) int, into q
     j_target: np.ndarray         # (F, Jmax) closing limit (or NaN for pre-shape joints)
+    lnk_center: np.ndarray       # (F, Lmax, 3) link frame: bounding sphere of the link's groups
+    lnk_radius: np.ndarray       # (F, Lmax), -1 for a link without spheres
+    moving: np.ndarray           # (F, Lmax) int: 1 when the finger's closing moves the link
+    palm_bound: np.ndarray       # (4,) root frame: centre and radius bounding the palm's spheres
     palm_groups: np.ndarray      # (Gp,) int groups of the palm (root and non-finger links)
     palm_pose: np.ndarray        # (Gp, 4, 4) their link pose in the root frame
     pairs: np.ndarray            # (K, 4) int: f1, l1, f2, l2 link pairs checked for overlap
@@ -209,7 +213,8 @@ def _build(hand) -> HandTables:
         palm_groups.extend(range(first, first + count))
         palm_pose.extend([rest[0, i]] * count)
 
-    pads = [(finger_links[f].index(fg.pad_link), fg.pad_center, fg.pad_radius) for f, fg in enumerate(fingers)]
+    pads = [(finger_links[f].index(fg.pad_link), pad_sphere_center(hand, fg), fg.pad_radius)
+            for f, fg in enumerate(fingers)]
     jmax = max(len(fg.joints) for fg in fingers)
     j_count = np.array([len(fg.joints) for fg in fingers])
     j_index = np.zeros((nf, jmax), np.int64)
@@ -221,8 +226,24 @@ def _build(hand) -> HandTables:
             if sense != 0:
                 j_target[f, k] = hand.upper[j] if sense > 0 else hand.lower[j]
 
+    lnk_center, lnk_radius = np.zeros((nf, lmax, 3)), -np.ones((nf, lmax))
+    for f in range(nf):
+        for l in range(int(n_links[f])):
+            g = np.arange(g_start[f, l], g_start[f, l] + g_count[f, l])
+            if len(g):
+                lnk_center[f, l], lnk_radius[f, l] = _bound(np.array(grp_center)[g], np.array(grp_radius)[g])
+    moving = np.zeros((nf, lmax), np.int64)
+    for f in range(nf):
+        for l in range(int(n_links[f])):
+            i = finger_link[f, l]
+            moving[f, l] = int(not np.allclose(rest[0, i], rest[1, i], atol=1e-9))
+    if palm_groups:
+        pc = np.array([p[:3, :3] @ grp_center[g] + p[:3, 3] for g, p in zip(palm_groups, palm_pose)])
+        palm_bound = np.append(*_bound(pc, np.array(grp_radius)[palm_groups]))
+    else:
+        palm_bound = np.array([0.0, 0.0, 0.0, -1.0])
     pairs = _overlap_pairs(hand, finger_links, rest[0])
-    basis, center, reach = _palm_frame(hand, palm_pose, palm_groups, grp_center, grp_radius)
+    basis, center, reach = _palm_frame(hand)
     lower = np.concatenate([WRIST_LOWER, [0.0], hand.lower])
     upper = np.concatenate([WRIST_UPPER, [float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX))],
                             hand.upper])
@@ -239,10 +260,37 @@ def _build(hand) -> HandTables:
         grp_center=_ro(grp_center), grp_radius=_ro(grp_radius), sph_center=_ro(sph_c), sph_radius=_ro(sph_r),
         pad_local=_ro([p[0] for p in pads], np.int64), pad_center=_ro([p[1] for p in pads]),
         pad_radius=_ro([p[2] for p in pads]), j_count=_ro(j_count, np.int64), j_index=_ro(j_index, np.int64),
-        j_target=_ro(j_target), palm_groups=_ro(palm_groups, np.int64),
+        j_target=_ro(j_target), lnk_center=_ro(lnk_center), lnk_radius=_ro(lnk_radius),
+        moving=_ro(moving, np.int64),
+        palm_bound=_ro(palm_bound), palm_groups=_ro(palm_groups, np.int64),
         palm_pose=_ro(np.reshape(palm_pose, (-1, 4, 4))), pairs=_ro(pairs, np.int64).reshape(-1, 4),
         basis=_ro(basis), grasp_center=_ro(center), open_q=_ro(q_open),
     )
+
+
+def pad_sphere_center(hand, finger) -> np.ndarray:
+    """The centre (3,) of a finger's pad sphere in its pad link's frame: the pad point
+    (``finger.pad_center``, on the link's surface) moved ``pad_radius`` inward along the
+    surface normal there (the gradient of the link's exact signed distance), so that the
+    sphere's surface is the pad's: it touches the object at the pad."""
+    from ..model.hands.spheres import union_signed_distance
+
+    geoms = hand.collision[finger.pad_link]
+    p = np.asarray(finger.pad_center, float)
+    h = 1e-4
+    grad = np.array([union_signed_distance(geoms, (p + h * e)[None])[0] - union_signed_distance(geoms, (p - h * e)[None])[0]
+                     for e in np.eye(3)])
+    norm = np.linalg.norm(grad)
+    if norm < 1e-9:
+        raise HandDescriptionError(f"hand {hand.name!r}: no surface normal at the pad of finger {finger.name!r}",
+                                   field="pad_center")
+    return p - finger.pad_radius * grad / norm
+
+
+def _bound(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, float]:
+    """A sphere (centre (3,), radius) holding spheres (k, 3), (k,)."""
+    mid = 0.5 * (centers.min(0) + centers.max(0))
+    return mid, float((np.linalg.norm(centers - mid, axis=1) + radii).max())
 
 
 def _overlap_pairs(hand, finger_links, rest: np.ndarray) -> np.ndarray:
@@ -266,7 +314,7 @@ def _overlap_pairs(hand, finger_links, rest: np.ndarray) -> np.ndarray:
     return np.array(out, dtype=np.int64).reshape(-1, 4)
 
 
-def _palm_frame(hand, palm_pose, palm_groups, grp_center, grp_radius) -> tuple[np.ndarray, np.ndarray, float]:
+def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float]:
     """The palm frame (x toward the fingers, z the palm normal) in the root frame, the
     grasp centre on the palm face (between the pads, laterally) and the pads' reach (m)."""
     z = np.asarray(hand.palm_normal, float)
@@ -281,13 +329,17 @@ def _palm_frame(hand, palm_pose, palm_groups, grp_center, grp_radius) -> tuple[n
         toward = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
     x = toward / np.linalg.norm(toward)
     y = np.cross(z, x)
-    if len(palm_groups):
-        centers = np.array([p[:3, :3] @ grp_center[g] + p[:3, 3] for g, p in zip(palm_groups, palm_pose)])
-        radii = np.array([grp_radius[g] for g in palm_groups])
-        face = float((centers @ z + radii).max())
+    # The palm face: the root link's own spheres (a forearm behind the palm does not count).
+    cover = hand.spheres.get(hand.root_link)
+    if cover is not None and len(cover.radii):
+        pose = poses[0, hand.link_index(hand.root_link)]
+        centers = np.asarray(cover.centers, float) @ pose[:3, :3].T + pose[:3, 3]
+        face = float((centers @ z + np.asarray(cover.radii)).max())
     else:
         face = 0.0
     lateral = pads[2].mean(0)
     lateral = lateral - (lateral @ z) * z
-    reach = float((pads @ z).max() - face)
-    return np.stack([x, y, z], axis=1), lateral + face * z, max(reach, 0.0)
+    # Reach: half the longest finger (its first link's origin to its pad, open).
+    bases = [poses[0, hand.link_index(hand.finger_links(f)[0]), :3, 3] for f in hand.fingers]
+    reach = 0.5 * float(max(np.linalg.norm(pads[0, i] - b) for i, b in enumerate(bases)))
+    return np.stack([x, y, z], axis=1), lateral + face * z, reach

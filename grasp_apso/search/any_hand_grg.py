@@ -4,7 +4,7 @@ Wrist orientations from the shape class (:meth:`grasp_apso.search.grg.ShapeClass
 which also turns them to the free side of support planes), standoffs in the hand's range
 (biased toward the palm), pre-shapes within the joint limits: each closing joint in the
 open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense),
-each pre-shape joint (abduction, thumb rotation) anywhere in its range. A particle is kept
+the thumb's pre-shape joints anywhere in their range, the other fingers' abduction near its open value. A particle is kept
 when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
 more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 """
@@ -23,12 +23,15 @@ from .grg import ShapeClass
 __all__ = ["AnyHandGenerator", "sample_any"]
 
 OPEN_FRACTION = 0.5
+#: Pre-shape joints of the fingers other than the thumb: within this fraction of their
+#: range either side of the open value (the thumb's: anywhere, for opposition).
+SPREAD_FRACTION = 0.15
 #: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR).
-REGENERATE_ROUNDS = 3
+REGENERATE_ROUNDS = 2
 REGENERATE_FACTOR = 0.5
 #: Rounds of drawing batches and the batch size over the particles wanted.
 DRAW_ROUNDS = 8
-DRAW_FACTOR = 3
+DRAW_FACTOR = 2
 
 
 def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
@@ -37,11 +40,15 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
     q = rng.uniform(lo, hi, (n, len(lo)))
     for f in range(t.n_fingers):
+        thumb = model.hand.fingers[f].is_thumb
         for k in range(int(t.j_count[f])):
             target = t.j_target[f, k]
-            if np.isnan(target):
-                continue
             j = int(t.j_index[f, k])
+            if np.isnan(target):
+                if not thumb:  # abduction near its open value: spread fingers collide
+                    half = SPREAD_FRACTION * (hi[j] - lo[j])
+                    q[:, j] = np.clip(t.open_q[j] + rng.uniform(-half, half, n), lo[j], hi[j])
+                continue
             start = t.open_q[j]
             q[:, j] = start + rng.uniform(0.0, fraction, n) * (target - start)
     return q

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PlanningError
-from ..geometry.collision import object_bvh
 from ..quality.measures import epsilon_quality
 from .archive import wrists_distinct
 from .ranking import grasp_quality, rank_order
@@ -54,7 +53,7 @@ def _module(name: str):
         return None
 
 
-def _check(model, problem, decoded, fitness: float, options, pose, obj, bvh, scene, fcl_api, hc) -> AnyChecked:
+def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
@@ -67,16 +66,16 @@ def _check(model, problem, decoded, fitness: float, options, pose, obj, bvh, sce
     distance, report, note = math.inf, None, ""
     if fcl_api is not None:
         q, root = decoded.q[0], decoded.root[0]
-        report = fcl_api.object_report(hc, q, root, bvh)
+        report = fcl_api.object_report(hc, q, root, obj)
         legal = legal and bool(report.legal)
         if scene is not None:
             root_plan = pose @ root
             approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
             distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))
             path = fcl_api.approach_report(hc, decoded.q_pre[0], root_plan, approach, options.approach_distance,
-                                           scene, bvh, pose)
-            distance = min(distance, float(getattr(path, "scene_distance", math.inf)))
-            scene_clear = scene_clear and distance >= options.clearance and not getattr(path, "hits_object", False)
+                                           scene, obj, pose)
+            distance = min(distance, float(path.min_scene_distance))
+            scene_clear = scene_clear and distance >= options.clearance and not path.hits_object
     else:
         note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
     return AnyChecked(decoded, float(fitness), float(eps), bool(closure), legal and mask.sum() >= 2,
@@ -95,7 +94,6 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     order = np.argsort(-fitness, kind="stable")
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
-    bvh = object_bvh(obj)
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
     rejected = 0
@@ -107,7 +105,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
                                             one.wrist[:, :3, :3], one.wrist[:, :3, 3], options.min_orientation_gap,
                                             options.min_position_gap)[0] for c in kept):
             continue
-        checked = _check(model, problem, one, fitness[i], options, pose, obj, bvh, scene, fcl_api, hc)
+        checked = _check(model, problem, one, fitness[i], options, pose, obj, scene, fcl_api, hc)
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
