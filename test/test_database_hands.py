@@ -136,3 +136,35 @@ def test_batch_with_a_urdf_hand_writes_its_name_hash_and_joints(allegro, tmp_pat
     assert len(GraspDatabase.open(out)) == 0  # the paper hand's node would not answer from them
     again = run_batch([str(mesh)], config)  # resumable: the same hand and options are done
     assert (again.planned, again.skipped) == (0, 1)
+
+
+def test_a_general_hand_s_stored_grasps_are_rechecked_against_the_request_scene(allegro, tmp_path):
+    from grasp_apso.model.scene import Scene
+    from grasp_apso.presentation.hand_geometry import hand_triangles
+
+    obj = builtin("cube")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    result = plan(obj, np.eye(4), PlanOptions(particles=16, iterations=6, max_grasps=3), rng=np.random.default_rng(4),
+                  hand=allegro.hand, scene=table)
+    valid = [c for c in result.candidates if c.valid]
+    assert valid
+    cols = candidate_rows(result.candidates, np.eye(4), _common(obj, allegro.name, allegro.hash), wrist_angles=False)
+    db = GraspDatabase.open(_write(tmp_path / "table.parquet", cols), hand=allegro)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.1, 0.2, 0.5]
+    scene = Scene.table_under(np.asarray(obj.mesh.vertices) + pose[:3, 3])
+    found = db.lookup(obj.mesh_hash, allegro.name, pose, scene, clearance=0.005, approach_distance=0.05,
+                      max_grasps=5, obj=obj)
+    assert found
+    top = -scene.planes[0][3]
+    for g in found:
+        assert 0.005 - 1e-6 <= g.scene_distance < math.inf
+        # Independent: the hand's own collision surface stays above the table, at the grasp and
+        # at the pre-grasp (vertex clustering for drawing only pulls points inward).
+        for q, root in ((g.joint_positions, g.wrist_pose), (g.pre_grasp_positions, g.pre_grasp_pose)):
+            lowest = min(t[..., 2].min() for t in hand_triangles(allegro.hand, q, root).values())
+            assert lowest >= top + 0.005 - 1e-3
+    # A table through the contacts' height leaves no stored grasp.
+    high = max(float(c.position[2]) for g in found for c in g.contacts) + 0.002  # planning frame
+    cut = Scene.from_primitives(planes=[(0.0, 0.0, 1.0, -high)])
+    assert db.lookup(obj.mesh_hash, allegro.name, pose, cut, clearance=0.005, max_grasps=5, obj=obj) == []

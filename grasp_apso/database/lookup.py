@@ -170,6 +170,7 @@ class GraspDatabase:
         max_grasps: int = 5,
         *,
         obj_bvh: Any = None,
+        obj: Any = None,
     ) -> list[GraspCandidate]:
         """Stored grasps of an object moved to ``pose`` and filtered by ``scene``, best first.
 
@@ -191,6 +192,9 @@ class GraspDatabase:
             At most this many candidates.
         obj_bvh : fcl.BVHModel, optional
             The object's mesh in the object frame, to check the approach against it too.
+        obj : GraspObject, optional
+            The same for a general hand (:func:`grasp_apso.geometry.any_hand_fcl.approach_report`
+            takes the object itself).
 
         Returns
         -------
@@ -221,7 +225,7 @@ class GraspDatabase:
             wrist = pose @ entry.wrist[i]
             scene_distance = math.inf
             if check_scene and self._general:
-                scene_distance = self._general_scene_distance(entry, i, wrist, scene, pose, obj_bvh, clearance,
+                scene_distance = self._general_scene_distance(entry, i, wrist, scene, pose, obj, clearance,
                                                               approach_distance)
                 if not scene_distance >= clearance:
                     continue
@@ -279,20 +283,20 @@ class GraspDatabase:
         return pre
 
     def _general_scene_distance(self, entry: _Entry, i: int, wrist: np.ndarray, scene: Any, pose: np.ndarray,
-                                obj_bvh: Any, clearance: float, approach_distance: float) -> float:
+                                obj: Any, clearance: float, approach_distance: float) -> float:
         """A general hand's least distance to the scene at the grasp and along the approach
         (python-fcl on its exact geometry); -inf when the approach hits the object early."""
         from ..geometry.any_hand_fcl import HandCollision, approach_report, scene_distance
 
-        hc = HandCollision(self.hand)
+        hc = HandCollision(self.hand)  # built once per hand (cached by its source_hash)
         d = scene_distance(hc, entry.closed[i], wrist, scene)
         if not d >= clearance:
             return d
         report = approach_report(hc, entry.opened[i], wrist, self._approach(wrist), approach_distance, scene,
-                                 obj_bvh, pose if obj_bvh is not None else None)
-        if getattr(report, "hits_object", False):
+                                 obj, pose if obj is not None else None, clearance=clearance)
+        if report.hits_object:
             return -math.inf
-        return min(d, float(getattr(report, "scene_distance", math.inf)))
+        return min(d, float(report.min_scene_distance))
 
     def _finger_points(self, key: tuple[str, str], entry: _Entry) -> tuple[np.ndarray, np.ndarray]:
         """Finger points (n, 5, 4, 3) in the palm frame, closed and open (computed once);

@@ -157,7 +157,8 @@ def lookup(database: Any, obj: Any, hand: Any, pose: np.ndarray, scene: Any, opt
     t0 = time.perf_counter()
     wanted = 50 if options.simulate else int(options.max_grasps)
     found = database.lookup(obj.mesh_hash, hand.name, pose, scene, clearance=options.clearance,
-                            approach_distance=options.approach_distance, max_grasps=wanted, obj_bvh=obj_bvh)
+                            approach_distance=options.approach_distance, max_grasps=wanted, obj_bvh=obj_bvh,
+                            obj=obj if obj_bvh is not None else None)
     if options.simulate:
         found = [c for c in found if c.sim_result != SIM_NOT_RUN][: int(options.max_grasps)]
         found = [dataclasses.replace(c, rank=i, id=f"g{i}") for i, c in enumerate(found)]
