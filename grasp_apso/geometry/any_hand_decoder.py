@@ -42,6 +42,10 @@ __all__ = ["AnyHandModel", "AnyDecoded", "make_any_hand_model", "root_poses", "d
 CUTOFF = 0.002
 #: Bisection steps after the coarse sweep: about 0.2 mm of fingertip travel.
 REFINE_STEPS = 6
+#: The sphere covers stray up to about 2 mm outside the exact geometry (model.hands.spheres):
+#: two fingers' covers overlap by up to twice that where the links do not, so this much
+#: more overlap is allowed between fingers (python-fcl decides on the exact geometry).
+COVER_OVERLAP = 0.003
 
 
 @dataclass(frozen=True)
@@ -232,7 +236,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     poses = np.empty((n_p, n_f, lmax, 4, 4))
     hk.link_poses(q, model.kin, poses)
     collide = np.empty((n_p, n_f), dtype=bool)
-    hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap), collide)
+    hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap) + COVER_OVERLAP, collide)
     palm = np.empty(n_p)
     hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, model.kin, CUTOFF, palm)
     points, normals = model.sdf.closest_surface_point(pad_pos)
