@@ -95,7 +95,7 @@ def prepare_any_hand(hand, obj, obj_pose, root_pose, q_pre, scene=None, friction
         check_stop(should_stop, "the simulation")
         raise SimulationError(f"simulation: no convex parts of the object ({found.note or found.method})")
     check_stop(should_stop, "building the model")
-    sc = build_any_hand_scene(hand, obj, found.parts, obj_pose, root_pose, scene, settings)
+    sc = build_any_hand_scene(hand, obj, found.parts, obj_pose, root_pose, scene, settings, pre)
     full = hand.full_positions(pre)
     for adr, index in sc.joint_qpos:
         sc.data.qpos[adr] = full[index]

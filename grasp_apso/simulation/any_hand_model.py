@@ -13,6 +13,9 @@
   that chain fixed where the held values put them, the top body placed so that the root
   body is at ``root_pose``; the hand's moving joints start from the root, welded to the
   world without a soft constraint.
+- Hand self-contacts are the file's, except between bodies whose geoms already overlap
+  at the open or the pre-grasp posture (a thumb base modelled inside the palm box): those
+  pairs are excluded, else the solver pushes the joints off their targets.
 - Position servos (gain ``settings.kp``, torque within ``settings.max_torque``) on the
   actuated joints, in ``hand.actuated_joints`` order (``data.ctrl`` = targets, rad or m).
   Joint armature and damping are raised to at least the settings' values: a servo is
@@ -159,9 +162,37 @@ def _keep_only_the_hand(spec, top_name: str) -> None:
             spec.delete(pair)
 
 
-def _hold_root(spec, hand, root_pose: np.ndarray) -> None:
+def _exclude_overlaps(spec, model, hand, postures) -> None:
+    """Exclude the contacts of hand body pairs whose geoms already overlap at one of
+    ``postures`` ((m,) full joint vectors): the file's own overlapping geometry (a thumb
+    base inside the palm box) would otherwise push the joints off their targets."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    # Parent-child pairs too: once the root is welded to the world MuJoCo no longer filters
+    # the root's contacts with its children.
+    flags = int(model.opt.disableflags)
+    model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    pairs = set()
+    for full in postures:
+        for name, value in zip(hand.joint_names, full):
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j >= 0 and model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+                data.qpos[model.jnt_qposadr[j]] = value
+        mujoco.mj_fwdPosition(model, data)
+        for c in data.contact[:data.ncon]:
+            if c.dist < 0:
+                a, b = (model.body(model.geom_bodyid[g]).name for g in (c.geom1, c.geom2))
+                pairs.add(tuple(sorted((a, b))))
+    model.opt.disableflags = flags
+    for a, b in sorted(pairs):
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+
+
+def _hold_root(spec, hand, root_pose: np.ndarray, postures) -> None:
     """Fix the chain from the world to the root link at the held joint values and place
-    it so that the root body is at ``root_pose`` (its joints removed)."""
+    it so that the root body is at ``root_pose`` (its joints removed); exclude the
+    contacts of bodies that overlap at ``postures`` (:func:`_exclude_overlaps`)."""
     import mujoco
 
     chain = [spec.body(hand.root_link)]
@@ -174,6 +205,7 @@ def _hold_root(spec, hand, root_pose: np.ndarray) -> None:
         model = spec.compile()
     except Exception as exc:
         raise SimulationError(f"simulation: MuJoCo cannot compile hand {hand.name!r}: {exc}") from exc
+    _exclude_overlaps(spec, model, hand, postures)
     data = mujoco.MjData(model)
     for name, value in hand.held_joints.items():
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -310,7 +342,7 @@ def _set_object_inertia(model, data, body: int, obj, mass: float) -> None:
 
 
 def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.ndarray, scene,
-                         settings: SimulationSettings) -> AnyHandScene:
+                         settings: SimulationSettings, q_pre: np.ndarray | None = None) -> AnyHandScene:
     """Compile the check of one grasp (see the module docstring).
 
     Parameters
@@ -322,6 +354,8 @@ def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.n
         (planning) frame
     scene : grasp_apso.model.scene.Scene or None, world frame
     settings : SimulationSettings
+    q_pre : (n,) float, optional: the starting posture; hand body pairs that overlap there
+        or in the open posture do not collide with each other
     """
     import mujoco
 
@@ -333,7 +367,10 @@ def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.n
     while top.parent is not None and top.parent.name != "world":
         top = top.parent
     _keep_only_the_hand(spec, top.name)
-    _hold_root(spec, hand, root_pose)
+    postures = [hand.full_positions(hand.open_configuration())]
+    if q_pre is not None:
+        postures.append(hand.full_positions(np.asarray(q_pre, float)))
+    _hold_root(spec, hand, root_pose, postures)
     _add_servos(spec, hand, settings)
     priority = 1 + max([int(g.priority) for g in spec.geoms] + [0])
     _add_object(spec, parts, obj_pose, settings, priority)
