@@ -16,8 +16,10 @@
 - Hand self-contacts are the file's, except between bodies whose geoms already overlap
   at the open or the pre-grasp posture (a thumb base modelled inside the palm box): those
   pairs are excluded, else the solver pushes the joints off their targets.
-- Position servos (gain ``settings.kp``, torque within ``settings.max_torque``) on the
-  actuated joints, in ``hand.actuated_joints`` order (``data.ctrl`` = targets, rad or m).
+- Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
+  servo's time constant stays ``joint_damping / kp``; torque within
+  ``settings.max_torque``) on the actuated joints, in ``hand.actuated_joints`` order
+  (``data.ctrl`` = targets, rad or m).
   Joint armature and damping are raised to at least the settings' values: a servo is
   stable at the protocol's 4 ms step only with enough inertia on the joint (a bare
   fingertip of 1e-6 kg m^2 under 2 N m/rad would need a 0.7 ms step).
@@ -49,6 +51,10 @@ __all__ = ["AnyHandScene", "build_any_hand_scene", "OBJECT_BODY"]
 OBJECT_BODY = "grasp_object"
 #: Every contype / conaffinity bit MuJoCo has (int32, sign bit excluded).
 _ALL_BITS = (1 << 31) - 1
+#: Lower bounds of a hand body's mass (kg) and inertia (kg m^2) (MuJoCo's boundmass /
+#: boundinertia).
+_MIN_MASS = 0.001
+_MIN_INERTIA = 1e-8
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,6 +138,10 @@ def _hand_spec(hand):
     for i, body in enumerate(spec.bodies):
         if not body.name:
             body.name = f"body{i}"
+    # Links without mass (a URDF's frame links) cannot move in MuJoCo: a floor of 1 g and
+    # 1e-8 kg m^2 (below any real finger link: bodies that have mass keep theirs).
+    spec.compiler.boundmass = max(float(spec.compiler.boundmass), _MIN_MASS)
+    spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), _MIN_INERTIA)
     return spec
 
 
@@ -293,17 +303,23 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
     for joint in spec.joints:
         joint.armature = max(float(np.max(joint.armature)), settings.joint_armature)
         joint.damping = np.maximum(np.asarray(joint.damping, float), settings.joint_damping)
+    # The servo's time constant damping / kp is the settings' (0.05 s) on a joint whose
+    # file damps it more (robosuite's Inspire and Fourier hands: 1 N m s/rad), else the
+    # fingers would lag their targets by 0.2 rad after the closing.
+    tau = settings.joint_damping / settings.kp
     for name in hand.actuated_joints:
-        if spec.joint(name) is None:
+        joint = spec.joint(name)
+        if joint is None:
             raise SimulationError(f"simulation: actuated joint {name!r} is not a joint of the compiled hand")
+        kp = max(settings.kp, float(np.max(joint.damping)) / tau)
         a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.dyntype = mujoco.mjtDyn.mjDYN_NONE
         a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         gain = np.zeros(len(a.gainprm))
-        gain[0] = settings.kp
+        gain[0] = kp
         bias = np.zeros(len(a.biasprm))
-        bias[1] = -settings.kp
+        bias[1] = -kp
         a.gainprm, a.biasprm = gain, bias
         a.gear = [1.0, 0, 0, 0, 0, 0]
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
