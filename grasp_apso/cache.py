@@ -198,6 +198,7 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "normal_spread": CacheLimit(8, 256 * _MB),   # geometry.normal_spread: (mesh hash, options, radius)
     "mesh_bvh": CacheLimit(8, 128 * _MB),        # geometry.collision: mesh hash
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
+    "sim_model": CacheLimit(8, 256 * _MB),       # simulation.any_hand_model: (mesh hash, hand, scene, settings)
 }
 
 _REGISTRY: dict[str, BoundedCache] = {}

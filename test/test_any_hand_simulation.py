@@ -25,7 +25,7 @@ from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.objects import from_arrays
 from grasp_apso.model.scene import Scene
 from grasp_apso.simulation import SimulationSettings
-from grasp_apso.simulation.any_hand import SimOutcome, prepare_any_hand, simulate_any_hand
+from grasp_apso.simulation.any_hand import SimOutcome, prepare_any_hand, simulate_any_hand, squeezed_positions
 from grasp_apso.simulation.any_hand_model import OBJECT_BODY
 from hand_files import installed_hand, write_allegro_like
 
@@ -169,6 +169,25 @@ def test_root_stays_at_the_root_pose_through_the_protocol(hands, name):
     for phase, root in rec.root.items():
         assert np.linalg.norm(root[:3, 3] - ROOT[:3, 3]) < 1e-3, phase
         assert np.abs(root[:3, :3] - ROOT[:3, :3]).max() < 1e-3, phase
+    # The compiled model is cached: another root pose moves a copy, not the cached one.
+    other = np.eye(4)
+    other[:3, 3] = [-0.4, 0.1, 0.05]
+    sc, _ = prepare_any_hand(hand, obj, pose, other, q_pre)
+    np.testing.assert_allclose(sc.data.xpos[sc.root_body], other[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(sc.data.xmat[sc.root_body].reshape(3, 3), np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(sc.data.xpos[sc.model.body(OBJECT_BODY).id], pose[:3, 3], atol=1e-9)
+
+
+def test_squeeze_goes_along_the_closing_senses(hands):
+    hand = hands["shadow"]
+    q = hand.closed_configuration(0.5)
+    squeezed = squeezed_positions(hand, q)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            j = hand.actuated_joints.index(joint)
+            expected = np.clip(q[j] + sense * math.radians(8.0), hand.lower[j], hand.upper[j])
+            assert squeezed[j] == pytest.approx(expected), joint
+    assert np.any(squeezed != q)
 
 
 @pytest.mark.parametrize("name", ["allegro_coupled", "shadow"])

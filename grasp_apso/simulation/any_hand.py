@@ -36,7 +36,7 @@ from .phases import check_stop, disable_contacts, disturb, planned_reference, ra
 from .protocol import SimResult
 from .settings import SimulationSettings
 
-__all__ = ["simulate_any_hand", "SimOutcome", "prepare_any_hand"]
+__all__ = ["simulate_any_hand", "SimOutcome", "prepare_any_hand", "squeezed_positions"]
 
 #: The verdict type (the paper hand's check returns the same).
 SimOutcome = SimResult
@@ -56,6 +56,20 @@ def _posture(hand, value, field_name: str) -> np.ndarray:
         raise InputError(f"{field_name}: {hand.actuated_joints[j]} = {q[j]:.4f} outside "
                          f"[{lo[j]:.4f}, {hi[j]:.4f}]", field_name)
     return np.clip(q, lo, hi)
+
+
+def squeezed_positions(hand, q_grasp, squeeze: float | None = None) -> np.ndarray:
+    """The grasp posture pushed ``squeeze`` rad (default ``SimulationSettings.squeeze``, 8
+    degrees) further along each joint's closing sense (``Finger.closing``; pre-shape
+    joints unchanged), clipped to the limits. q_grasp (n,) -> (n,) over
+    ``hand.actuated_joints``."""
+    _check_hand(hand)
+    q = _posture(hand, q_grasp, "q_grasp").copy()
+    step = SimulationSettings().squeeze if squeeze is None else float(squeeze)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            q[hand.actuated_joints.index(joint)] += sense * step
+    return np.clip(q, hand.lower, hand.upper)
 
 
 def _check_hand(hand) -> None:
@@ -95,7 +109,7 @@ def prepare_any_hand(hand, obj, obj_pose, root_pose, q_pre, scene=None, friction
         check_stop(should_stop, "the simulation")
         raise SimulationError(f"simulation: no convex parts of the object ({found.note or found.method})")
     check_stop(should_stop, "building the model")
-    sc = build_any_hand_scene(hand, obj, found.parts, obj_pose, root_pose, scene, settings, pre)
+    sc = build_any_hand_scene(hand, obj, found.parts, obj_pose, root_pose, scene, settings)
     full = hand.full_positions(pre)
     for adr, index in sc.joint_qpos:
         sc.data.qpos[adr] = full[index]

@@ -14,8 +14,10 @@
   body is at ``root_pose``; the hand's moving joints start from the root, welded to the
   world without a soft constraint.
 - Hand self-contacts are the file's, except between bodies whose geoms already overlap
-  at the open or the pre-grasp posture (a thumb base modelled inside the palm box): those
-  pairs are excluded, else the solver pushes the joints off their targets.
+  in the open posture (a thumb base modelled inside the palm box): those pairs are
+  excluded, else the solver pushes the joints off their targets.
+- Compiled once per (object, hand, scene, settings) and cached (MuJoCo compiles a hand of
+  many meshes in 0.5 s); each grasp moves a copy (the top body, the object's free joint).
 - Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
   servo's time constant stays ``joint_damping / kp``; torque within
   ``settings.max_torque``) on the actuated joints, in ``hand.actuated_joints`` order
@@ -74,6 +76,21 @@ class AnyHandScene:
     model: object
     data: object
     object_body: int
+    root_body: int
+    scene_geoms: tuple[int, ...]
+    joint_qpos: tuple[tuple[int, int], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class _Template:
+    """A compiled check with the hand's top body and the object at the identity: moved
+    per grasp on a copy (``top_to_root`` (4, 4): the root body in the top body's frame)."""
+
+    model: object
+    top_body: int
+    top_to_root: np.ndarray
+    object_body: int
+    object_qpos: int
     root_body: int
     scene_geoms: tuple[int, ...]
     joint_qpos: tuple[tuple[int, int], ...]
@@ -199,10 +216,11 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
         spec.add_exclude(bodyname1=a, bodyname2=b)
 
 
-def _hold_root(spec, hand, root_pose: np.ndarray, postures) -> None:
-    """Fix the chain from the world to the root link at the held joint values and place
-    it so that the root body is at ``root_pose`` (its joints removed); exclude the
-    contacts of bodies that overlap at ``postures`` (:func:`_exclude_overlaps`)."""
+def _hold_root(spec, hand, postures) -> np.ndarray:
+    """Fix the chain from the world to the root link at the held joint values (its
+    joints removed), the top body at the world origin; exclude the contacts of bodies that
+    overlap at ``postures`` (:func:`_exclude_overlaps`). Returns the root body's pose in
+    the top body's frame (4, 4)."""
     import mujoco
 
     chain = [spec.body(hand.root_link)]
@@ -226,13 +244,14 @@ def _hold_root(spec, hand, root_pose: np.ndarray, postures) -> None:
     for k in range(1, len(chain)):
         _set_pose(chain[k], np.linalg.inv(world[k - 1]) @ world[k])
     top_to_root = np.linalg.inv(world[0]) @ world[-1]
-    _set_pose(chain[0], root_pose @ np.linalg.inv(top_to_root))
+    _set_pose(chain[0], np.eye(4))
     chain[0].mocap = False
     held = {j.name for body in chain for j in body.joints}
     _drop_users_of(spec, model, held)
     for body in chain:
         for joint in list(body.joints):
             spec.delete(joint)
+    return top_to_root
 
 
 def _drop_users_of(spec, model, joints: set[str]) -> None:
@@ -327,10 +346,10 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         a.forcerange = [-settings.max_torque, settings.max_torque]
 
 
-def _add_object(spec, parts, obj_pose: np.ndarray, settings: SimulationSettings, priority: int) -> None:
+def _add_object(spec, parts, settings: SimulationSettings, priority: int) -> None:
     import mujoco
 
-    body = spec.worldbody.add_body(name=OBJECT_BODY, pos=obj_pose[:3, 3], quat=matrix_to_quat(obj_pose[:3, :3]))
+    body = spec.worldbody.add_body(name=OBJECT_BODY)
     body.add_freejoint(name=f"{OBJECT_BODY}_free")
     body.simple = 0  # its inertia is replaced after compiling (MuJoCo's body/simple="false")
     for i, part in enumerate(parts):
@@ -357,22 +376,15 @@ def _set_object_inertia(model, data, body: int, obj, mass: float) -> None:
     mujoco.mj_setConst(model, data)
 
 
-def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.ndarray, scene,
-                         settings: SimulationSettings, q_pre: np.ndarray | None = None) -> AnyHandScene:
-    """Compile the check of one grasp (see the module docstring).
+def _scene_key(scene) -> tuple:
+    if scene is None:
+        return ()
+    planes = np.asarray(scene.planes, float).reshape(-1, 4)
+    return (planes.tobytes(), tuple((o.kind, tuple(o.dimensions), np.asarray(o.pose, float).tobytes())
+                                    for o in scene.obstacles))
 
-    Parameters
-    ----------
-    hand : grasp_apso.model.hands.HandModel (loaded from a file: ``source_path``)
-    obj : GraspObject
-    parts : sequence of (N_i, 3) float, m: the object's convex parts, object frame
-    obj_pose, root_pose : (4, 4) float: the object and the hand's root link in the world
-        (planning) frame
-    scene : grasp_apso.model.scene.Scene or None, world frame
-    settings : SimulationSettings
-    q_pre : (n,) float, optional: the starting posture; hand body pairs that overlap there
-        or in the open posture do not collide with each other
-    """
+
+def _compile_template(hand, obj, parts, scene, settings: SimulationSettings) -> _Template:
     import mujoco
 
     spec = _hand_spec(hand)
@@ -382,14 +394,12 @@ def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.n
     top = root
     while top.parent is not None and top.parent.name != "world":
         top = top.parent
-    _keep_only_the_hand(spec, top.name)
-    postures = [hand.full_positions(hand.open_configuration())]
-    if q_pre is not None:
-        postures.append(hand.full_positions(np.asarray(q_pre, float)))
-    _hold_root(spec, hand, root_pose, postures)
+    top_name = top.name
+    _keep_only_the_hand(spec, top_name)
+    top_to_root = _hold_root(spec, hand, [hand.full_positions(hand.open_configuration())])
     _add_servos(spec, hand, settings)
     priority = 1 + max([int(g.priority) for g in spec.geoms] + [0])
-    _add_object(spec, parts, obj_pose, settings, priority)
+    _add_object(spec, parts, settings, priority)
     scene_names = _add_scene(spec, scene, settings, priority)
     opt = spec.option
     opt.timestep = settings.timestep
@@ -402,13 +412,53 @@ def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.n
     except Exception as exc:
         raise SimulationError(f"simulation: MuJoCo could not build the scene of hand {hand.name!r}: "
                               f"{str(exc).splitlines()[0][:300]}") from exc
-    data = mujoco.MjData(model)
     body = model.body(OBJECT_BODY).id
-    _set_object_inertia(model, data, body, obj, settings.object_mass)
+    _set_object_inertia(model, mujoco.MjData(model), body, obj, settings.object_mass)
     joint_qpos = []
     for index, name in enumerate(hand.joint_names):
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if j >= 0:
             joint_qpos.append((int(model.jnt_qposadr[j]), index))
-    return AnyHandScene(model=model, data=data, object_body=body, root_body=model.body(hand.root_link).id,
-                        scene_geoms=tuple(model.geom(n).id for n in scene_names), joint_qpos=tuple(joint_qpos))
+    top_to_root.flags.writeable = False
+    return _Template(model=model, top_body=model.body(top_name).id, top_to_root=top_to_root, object_body=body,
+                     object_qpos=int(model.jnt_qposadr[model.body_jntadr[body]]),
+                     root_body=model.body(hand.root_link).id,
+                     scene_geoms=tuple(model.geom(n).id for n in scene_names), joint_qpos=tuple(joint_qpos))
+
+
+def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.ndarray, scene,
+                         settings: SimulationSettings) -> AnyHandScene:
+    """The check of one grasp (see the module docstring), from a compiled template cached
+    per (object, hand, scene, settings) (:func:`grasp_apso.cache.cached`, "sim_model"):
+    a copy of it with the hand's top body placed so that the root is at ``root_pose`` and
+    the object's free joint at ``obj_pose``.
+
+    Parameters
+    ----------
+    hand : grasp_apso.model.hands.HandModel (loaded from a file: ``source_path``)
+    obj : GraspObject
+    parts : sequence of (N_i, 3) float, m: the object's convex parts, object frame
+    obj_pose, root_pose : (4, 4) float: the object and the hand's root link in the world
+        (planning) frame
+    scene : grasp_apso.model.scene.Scene or None, world frame
+    settings : SimulationSettings
+    """
+    import copy
+
+    import mujoco
+
+    from ..cache import cached
+
+    key = (obj.mesh_hash, len(parts), hand.source_hash, hand.source_path, _scene_key(scene), settings)
+    template = cached("sim_model", key, lambda: _compile_template(hand, obj, parts, scene, settings),
+                      nbytes=lambda v: int(mujoco.mj_sizeModel(v.model)))
+    model = copy.copy(template.model)
+    top = np.asarray(root_pose, float) @ np.linalg.inv(template.top_to_root)
+    model.body_pos[template.top_body] = top[:3, 3]
+    model.body_quat[template.top_body] = matrix_to_quat(top[:3, :3])
+    data = mujoco.MjData(model)
+    adr = template.object_qpos
+    data.qpos[adr:adr + 3] = obj_pose[:3, 3]
+    data.qpos[adr + 3:adr + 7] = matrix_to_quat(obj_pose[:3, :3])
+    return AnyHandScene(model=model, data=data, object_body=template.object_body, root_body=template.root_body,
+                        scene_geoms=template.scene_geoms, joint_qpos=template.joint_qpos)
