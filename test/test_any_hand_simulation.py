@@ -291,6 +291,8 @@ def test_bad_inputs_name_the_field(hands):
         simulate_any_hand(hand, obj, FAR, ROOT, bad, q, q)
     with pytest.raises(InputError, match="root_pose"):
         simulate_any_hand(hand, obj, FAR, np.eye(3), q, q, q)
+    with pytest.raises(InputError, match="obj"):
+        simulate_any_hand(hand, "sphere", FAR, ROOT, q, q, q)
     with pytest.raises(InputError, match="friction"):
         simulate_any_hand(hand, obj, FAR, ROOT, q, q, q, friction=-1.0)
     from grasp_apso.model.hand import load_hand as load_paper_hand

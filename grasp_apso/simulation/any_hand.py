@@ -101,6 +101,8 @@ def prepare_any_hand(hand, obj, obj_pose, root_pose, q_pre, scene=None, friction
     obj_pose = rigid_transform(obj_pose, "obj_pose")
     root_pose = rigid_transform(root_pose, "root_pose")
     pre = _posture(hand, q_pre, "q_pre")
+    if not all(hasattr(obj, a) for a in ("mesh", "mesh_hash", "center_of_mass")):
+        raise InputError("obj: expected a GraspObject (mesh, mesh_hash, center_of_mass)", "obj")
     if scene is not None and not hasattr(scene, "planes"):
         raise InputError("scene: expected a grasp_apso.model.scene.Scene or None", "scene")
     check_stop(should_stop, "the convex decomposition")
