@@ -46,6 +46,9 @@ REFINE_STEPS = 6
 #: two fingers' covers overlap by up to twice that where the links do not, so this much
 #: more overlap is allowed between fingers (python-fcl decides on the exact geometry).
 COVER_OVERLAP = 0.003
+#: A pad is in contact within the contact tolerance less this (m): the grid's trilinear
+#: distance errs by up to about this much near edges and curved surfaces.
+GRID_MARGIN = 0.0005
 
 
 @dataclass(frozen=True)
@@ -216,7 +219,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
     tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance)
+    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN)
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
