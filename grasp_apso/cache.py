@@ -200,6 +200,7 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
     "hand_collision": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: (hand source hash, geometry digest)
     "object_distance": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)
+    "sim_model": CacheLimit(8, 256 * _MB),       # simulation.any_hand_model: (mesh hash, hand, scene, settings)
 }
 
 _REGISTRY: dict[str, BoundedCache] = {}

@@ -42,6 +42,13 @@ __all__ = ["AnyHandModel", "AnyDecoded", "make_any_hand_model", "root_poses", "d
 CUTOFF = 0.002
 #: Bisection steps after the coarse sweep: about 0.2 mm of fingertip travel.
 REFINE_STEPS = 6
+#: The sphere covers stray up to about 2 mm outside the exact geometry (model.hands.spheres):
+#: two fingers' covers overlap by up to twice that where the links do not, so this much
+#: more overlap is allowed between fingers (python-fcl decides on the exact geometry).
+COVER_OVERLAP = 0.003
+#: A pad is in contact within the contact tolerance less this (m): the grid's trilinear
+#: distance errs by up to about this much near edges and curved surfaces.
+GRID_MARGIN = 0.0005
 
 
 @dataclass(frozen=True)
@@ -212,7 +219,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
     tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance)
+    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN)
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
@@ -232,7 +239,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     poses = np.empty((n_p, n_f, lmax, 4, 4))
     hk.link_poses(q, model.kin, poses)
     collide = np.empty((n_p, n_f), dtype=bool)
-    hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap), collide)
+    hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap) + COVER_OVERLAP, collide)
     palm = np.empty(n_p)
     hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, model.kin, CUTOFF, palm)
     points, normals = model.sdf.closest_surface_point(pad_pos)

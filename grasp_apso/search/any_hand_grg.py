@@ -30,7 +30,7 @@ SPREAD_FRACTION = 0.15
 REGENERATE_ROUNDS = 2
 REGENERATE_FACTOR = 0.5
 #: Rounds of drawing batches and the batch size over the particles wanted.
-DRAW_ROUNDS = 8
+DRAW_ROUNDS = 12
 DRAW_FACTOR = 2
 
 
@@ -74,16 +74,21 @@ class AnyHandGenerator:
         self.should_stop = should_stop
         self.evaluations = 0
 
-    def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Regenerate illegal fingers in bounded rounds: (x, good (n,) bool)."""
+    def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Regenerate illegal fingers in bounded rounds: (x, good (n,) bool, near (n,) bool:
+        valid but for the scene)."""
         t, s = self.model.tables, self.model.settings
         fraction = OPEN_FRACTION
-        good = np.zeros(len(x), dtype=bool)
+        good = near = np.zeros(len(x), dtype=bool)
         for round_ in range(REGENERATE_ROUNDS + 1):
             decoded = decode_any(self.model, x, self.wrist_position)
             self.evaluations += len(x)
-            good = decoded.legal(s.max_penetration) & (decoded.n_contacts >= 2)
-            bad = decoded.finger_illegal(s.max_penetration) & ~good[:, None]
+            # Legal but for the scene counts too (the swarm's fitness guides it out of the
+            # scene; the final selection requires it clear): scene-clear ones come first.
+            near = ~decoded.finger_illegal(s.max_penetration).any(axis=1) & (
+                decoded.palm_clearance >= -s.max_penetration) & (decoded.n_contacts >= 2)
+            good = near & decoded.legal(s.max_penetration)
+            bad = decoded.finger_illegal(s.max_penetration) & ~near[:, None]
             if round_ == REGENERATE_ROUNDS or not bad.any():
                 break
             fraction *= REGENERATE_FACTOR
@@ -92,22 +97,24 @@ class AnyHandGenerator:
                 joints = 4 + t.j_index[f, :int(t.j_count[f])]
                 rows = bad[:, f]
                 x[np.ix_(rows, joints)] = fresh[np.ix_(rows, joints - 4)]
-        return x, good
+        return x, good, near & ~good
 
     def draw(self, k: int) -> np.ndarray:
         """k particles: valid ones first; filled with the last batch's others when the
         bounded rounds find fewer. PlanningError when no draw decodes to a valid grasp."""
         found: list[np.ndarray] = []
+        close: list[np.ndarray] = []
         spare: np.ndarray | None = None
         count = 0
         for _ in range(DRAW_ROUNDS):
             if count >= k or (self.should_stop is not None and self.should_stop()):
                 break
-            x, good = self._verified(sample_any(self.model, self.shape, DRAW_FACTOR * (k - count), self.rng))
+            x, good, near = self._verified(sample_any(self.model, self.shape, DRAW_FACTOR * (k - count), self.rng))
             found.append(x[good])
-            count += int(good.sum())
-            spare = x[~good]
-        valid = np.concatenate(found) if found else np.empty((0, self.model.layout.dims))
+            close.append(x[near])
+            count += int(good.sum()) + int(near.sum())
+            spare = x[~good & ~near]
+        valid = np.concatenate(found + close) if found else np.empty((0, self.model.layout.dims))
         if len(valid) == 0 and not (self.should_stop is not None and self.should_stop()):
             raise PlanningError(
                 f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "

@@ -127,20 +127,19 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     return kept, message
 
 
-def squeeze_posture(model, q: np.ndarray, contact: np.ndarray) -> np.ndarray:
-    """The grasp posture q (n,) pushed ``squeeze`` further along the closing senses of the
-    fingers in contact (F,), within the limits."""
+def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
+    """The grasp posture q (n,) pushed the simulation's ``squeeze`` further along every
+    joint's closing sense, within the limits: the same posture as
+    :func:`grasp_apso.simulation.any_hand.squeezed_positions` (which imports MuJoCo, so it is
+    not called for every plan)."""
     settings = _module("grasp_apso.simulation.settings")
-    amount = settings.SimulationSettings().squeeze if settings and hasattr(settings, "SimulationSettings") else SQUEEZE
-    t = model.tables
+    amount = settings.SimulationSettings().squeeze if settings is not None else SQUEEZE
+    hand = model.hand
     out = np.array(q, dtype=float)
-    for f in np.flatnonzero(contact):
-        for k in range(int(t.j_count[f])):
-            target = t.j_target[f, k]
-            if not np.isnan(target):
-                j = int(t.j_index[f, k])
-                out[j] += np.sign(target - out[j]) * min(amount, abs(target - out[j]))
-    return out
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            out[hand.actuated_joints.index(joint)] += sense * amount
+    return np.clip(out, hand.lower, hand.upper)
 
 
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, str]:
@@ -154,7 +153,7 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
             continue
         d = c.decoded
         out.append(sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
-                                         squeeze_posture(model, d.q[0], d.contact[0]), scene, options.friction,
+                                         squeeze_posture(model, d.q[0]), scene, options.friction,
                                          should_stop=should_stop))
     return out, ""
 
@@ -192,7 +191,7 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
             sim_max_shift=math.nan if sim is None else float(sim.max_shift),
             sim_max_turn=math.nan if sim is None else float(sim.max_turn),
             wrist_in_object=d.root[0].copy(), joints=np.zeros((0, 4, 3)), pre_grasp_joints=np.zeros((0, 4, 3)),
-            squeeze_positions=squeeze_posture(model, d.q[0], d.contact[0])))
+            squeeze_positions=squeeze_posture(model, d.q[0])))
     top, best = checked[int(order[0])], candidates[0]
     d = top.decoded
     return GraspResult(

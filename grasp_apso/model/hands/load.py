@@ -86,7 +86,8 @@ def load_hand(path: str | Path | None = None, config: str | Path | dict | None =
     cfg = read_config(config)
     source_hash = hashlib.sha256(content + b"\0" + cfg.canonical.encode()).hexdigest()
     key = (source_hash, str(path.resolve().parent), bool(spheres), limit)
-    return _CACHE.get_or_create(key, lambda: _build(path, kind, content, cfg, source_hash, limit, spheres))
+    return _CACHE.get_or_create(key, lambda: replace(_build(path, kind, content, cfg, source_hash, limit, spheres),
+                                                     source_path=str(path.resolve())))
 
 
 def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: str, limit: int,
