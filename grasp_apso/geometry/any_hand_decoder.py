@@ -147,6 +147,7 @@ class AnyDecoded:
     pad_points : (P, F, 3) float, m
         The pad spheres' centres at the grasp.
     penetration, blocked, link_contact, finger_collision : (P, F)
+        (``finger_collision`` checked only for particles otherwise legal with two contacts)
     palm_clearance : (P,) float, m
     scene_margin : (P,) float or None, m
         Least distance of the hand to the scene minus the clearance (grasp and approach);
@@ -238,10 +239,18 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
         link_contact[:] = False
     poses = np.empty((n_p, n_f, lmax, 4, 4))
     hk.link_poses(q, model.kin, poses)
-    collide = np.empty((n_p, n_f), dtype=bool)
-    hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap) + COVER_OVERLAP, collide)
     palm = np.empty(n_p)
     hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, model.kin, CUTOFF, palm)
+    # Overlaps between fingers only where they can decide (two contacts, nothing else
+    # illegal): the others are inactive whatever their fingers do.
+    collide = np.zeros((n_p, n_f), dtype=bool)
+    check = (contact.sum(axis=1) >= 2) & (palm >= -s.max_penetration) & ~(
+        blocked | link_contact | (penetration > s.max_penetration)).any(axis=1)
+    if check.any():
+        out = np.empty((int(check.sum()), n_f), dtype=bool)
+        hk.finger_overlaps(np.ascontiguousarray(poses[check]), t.pairs, model.kin,
+                           float(s.finger_overlap) + COVER_OVERLAP, out)
+        collide[check] = out
     points, normals = model.sdf.closest_surface_point(pad_pos)
     closed = x.copy()
     closed[:, lay.joints] = q

@@ -31,7 +31,10 @@ REGENERATE_ROUNDS = 2
 REGENERATE_FACTOR = 0.5
 #: Rounds of drawing batches and the batch size over the particles wanted.
 DRAW_ROUNDS = 12
-DRAW_FACTOR = 2
+DRAW_FACTOR = 1.5
+#: Batches are sized by the valid share seen so far (at least MIN_RATE), at most MAX_BATCH.
+MIN_RATE = 0.05
+MAX_BATCH = 400
 
 
 def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
@@ -73,30 +76,35 @@ class AnyHandGenerator:
         self.wrist_position = wrist_position
         self.should_stop = should_stop
         self.evaluations = 0
+        self.rate = 1.0  # share of draws found valid so far (sizes the batches)
 
     def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Regenerate illegal fingers in bounded rounds: (x, good (n,) bool, near (n,) bool:
-        valid but for the scene)."""
+        """Regenerate illegal fingers in bounded rounds (only the changed particles are
+        decoded again): (x, good (n,) bool, near (n,) bool: valid but for the scene)."""
         t, s = self.model.tables, self.model.settings
         fraction = OPEN_FRACTION
-        good = near = np.zeros(len(x), dtype=bool)
+        good = np.zeros(len(x), dtype=bool)
+        near = np.zeros(len(x), dtype=bool)
+        rows = np.arange(len(x))
         for round_ in range(REGENERATE_ROUNDS + 1):
-            decoded = decode_any(self.model, x, self.wrist_position)
-            self.evaluations += len(x)
+            decoded = decode_any(self.model, x[rows], self.wrist_position)
+            self.evaluations += len(rows)
             # Legal but for the scene counts too (the swarm's fitness guides it out of the
             # scene; the final selection requires it clear): scene-clear ones come first.
-            near = ~decoded.finger_illegal(s.max_penetration).any(axis=1) & (
-                decoded.palm_clearance >= -s.max_penetration) & (decoded.n_contacts >= 2)
-            good = near & decoded.legal(s.max_penetration)
-            bad = decoded.finger_illegal(s.max_penetration) & ~near[:, None]
+            illegal = decoded.finger_illegal(s.max_penetration)
+            near[rows] = ~illegal.any(axis=1) & (decoded.palm_clearance >= -s.max_penetration) & (
+                decoded.n_contacts >= 2)
+            good[rows] = near[rows] & decoded.legal(s.max_penetration)
+            bad = illegal & ~near[rows][:, None]
             if round_ == REGENERATE_ROUNDS or not bad.any():
                 break
             fraction *= REGENERATE_FACTOR
-            fresh = _preshape(self.model, len(x), self.rng, fraction)
+            fresh = _preshape(self.model, len(rows), self.rng, fraction)
             for f in range(t.n_fingers):
                 joints = 4 + t.j_index[f, :int(t.j_count[f])]
-                rows = bad[:, f]
-                x[np.ix_(rows, joints)] = fresh[np.ix_(rows, joints - 4)]
+                sel = bad[:, f]
+                x[np.ix_(rows[sel], joints)] = fresh[np.ix_(sel, joints - 4)]
+            rows = rows[bad.any(axis=1)]
         return x, good, near & ~good
 
     def draw(self, k: int) -> np.ndarray:
@@ -109,7 +117,9 @@ class AnyHandGenerator:
         for _ in range(DRAW_ROUNDS):
             if count >= k or (self.should_stop is not None and self.should_stop()):
                 break
-            x, good, near = self._verified(sample_any(self.model, self.shape, DRAW_FACTOR * (k - count), self.rng))
+            batch = int(min(MAX_BATCH, np.ceil(DRAW_FACTOR * (k - count) / max(self.rate, MIN_RATE))))
+            x, good, near = self._verified(sample_any(self.model, self.shape, batch, self.rng))
+            self.rate = 0.5 * self.rate + 0.5 * float(np.mean(good | near))
             found.append(x[good])
             close.append(x[near])
             count += int(good.sum()) + int(near.sum())
