@@ -28,14 +28,14 @@ from grasp_apso.ros.node import GraspPlannerNode  # noqa: E402
 from grasp_apso.search.options import PlanOptions  # noqa: E402
 from grasp_apso.search.planner import plan  # noqa: E402
 
-SMALL = dict(particles=16, iterations=6)
+SMALL = dict(particles=30, iterations=6)
 CALL_TIMEOUT = 240.0
 
 
 def _allegro_database(path, hand):
     """A one-file grasp database of the cube planned with the Allegro-like hand."""
     obj = builtin('cube')
-    result = plan(obj, np.eye(4), PlanOptions(particles=16, iterations=6, max_grasps=3), rng=np.random.default_rng(3),
+    result = plan(obj, np.eye(4), PlanOptions(particles=30, iterations=6, max_grasps=3), rng=np.random.default_rng(3),
                   hand=hand.hand)
     assert any(c.valid for c in result.candidates)
     common = {'object_id': 'cube', 'source_path': 'cube.stl', 'source_sha256': '0' * 64, 'scale': 1.0,
