@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-__all__ = ["installed_hand", "HANDS", "write_allegro_like"]
+__all__ = ["installed_hand", "HANDS", "write_allegro_like", "urdf_actuated_joints"]
 
 #: name -> (distribution module, path inside it)
 HANDS = {
@@ -39,6 +39,15 @@ HANDS = {
     "robotiq_s": ("robosuite", "models/assets/grippers/robotiq_gripper_s.xml"),
     "jaco": ("robosuite", "models/assets/grippers/jaco_three_finger_gripper.xml"),
 }
+
+
+def urdf_actuated_joints(path: str | Path) -> list[str]:
+    """A URDF's own non-fixed, non-mimic joints in file order, read with the standard
+    library's XML parser (independent of the hand loader, to check it)."""
+    import xml.etree.ElementTree as ET
+
+    return [j.get("name") for j in ET.parse(path).getroot().iter("joint")
+            if j.get("type") != "fixed" and j.find("mimic") is None]
 
 
 def installed_hand(name: str) -> Path:

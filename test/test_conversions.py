@@ -213,3 +213,73 @@ def test_progress_msg_distinct_candidates():
                            active_particles=3, best_contacts=3, evaluations=6, elapsed=0.1)
     expected = int(getattr(stats, 'distinct_candidates', 0))
     assert conversions.progress_msg(stats, 'a', 'apso', Header()).distinct_candidates == expected
+
+
+def _seconds(duration):
+    return duration.sec + duration.nanosec * 1e-9
+
+
+def test_paper_hand_replies_carry_the_hand_trajectory(planned):
+    _, result = planned
+    hand = load_hand()
+    msg = conversions.fill_result(PlanGrasp.Response(), result, Header(frame_id='table'), hand=hand)
+    squeeze = math.radians(8.0)  # the simulation protocol's squeeze (DESIGN.md Part 2)
+    for g, c in zip(msg.grasps, result.candidates):
+        traj = g.hand_trajectory
+        assert list(traj.joint_names) == list(g.grasp_posture.name) == list(JOINT_NAMES)
+        assert traj.header.frame_id == 'table' and len(traj.points) == 3
+        times = [_seconds(p.time_from_start) for p in traj.points]
+        assert times[0] == 0.0 and times[0] < times[1] < times[2]
+        q = np.array([p.positions for p in traj.points])
+        assert np.allclose(q[0], c.pre_grasp_positions) and np.allclose(q[1], c.joint_positions)
+        # Independent: every flexion (distal, proximal of each finger: indices 0, 1 mod 3 of
+        # the 15 finger joints) 8 degrees further, clipped; pivots and wrist angles unchanged.
+        flex = np.zeros(18, dtype=bool)
+        flex[0:15:3] = flex[1:15:3] = True
+        expected = np.array(c.joint_positions, dtype=float)
+        expected[flex] = np.minimum(expected[flex] + squeeze, hand.upper[:15][flex[:15]])
+        assert np.allclose(q[2], expected)
+        assert np.any(q[2][flex] > q[1][flex])  # it does squeeze
+    serialize_message(msg)
+
+
+def test_general_hand_joint_names_in_the_reply(planned, tmp_path):
+    """A result over another hand's actuated joints (hand-built from the paper plan's
+    numbers) goes through: the JointStates and the trajectory carry those names."""
+    import dataclasses
+
+    from hand_files import write_allegro_like
+
+    from grasp_apso.model.hands.load import load_hand as load_any_hand
+
+    hand = load_any_hand(write_allegro_like(tmp_path), spheres=False)
+    n = len(hand.actuated_joints)
+    rng = np.random.default_rng(3)
+    _, result = planned
+    grasp = rng.uniform(hand.lower, hand.upper)
+    candidates = tuple(dataclasses.replace(c, joint_positions=grasp + i * 1e-3, pre_grasp_positions=hand.lower.copy(),
+                                           joints=np.zeros((0, 4, 3)), pre_grasp_joints=np.zeros((0, 4, 3)))
+                       for i, c in enumerate(result.candidates))
+    general = dataclasses.replace(result, joint_names=hand.actuated_joints, candidates=candidates,
+                                  joint_positions=candidates[0].joint_positions)
+    msg = conversions.fill_result(PlanGrasp.Response(), general, Header(frame_id='table'), hand=hand)
+    assert list(msg.configuration.name) == list(hand.actuated_joints) and len(msg.configuration.position) == n
+    assert np.allclose(msg.configuration.position, grasp)
+    for g, c in zip(msg.grasps, candidates):
+        assert list(g.grasp_posture.name) == list(g.hand_trajectory.joint_names) == list(hand.actuated_joints)
+        q = np.array([p.positions for p in g.hand_trajectory.points])
+        assert q.shape == (3, n) and np.allclose(q[0], hand.lower) and np.allclose(q[1], c.joint_positions)
+    serialize_message(msg)
+    markers = ros_markers.grasp_markers(general, Header(frame_id='table'), hand).markers
+    drawn = [m for m in markers if m.ns == 'grasp_apso/hand']
+    assert drawn and all(m.type == Marker.TRIANGLE_LIST and len(m.points) % 3 == 0 for m in drawn)
+    assert not [m for m in markers if m.ns in ('grasp_apso/palm', 'grasp_apso/links')]
+    assert sum(len(m.points) for m in drawn) // 3 <= 3500
+    # Independent: the drawn hand's points lie where the links are: every link origin placed by
+    # wrist_pose @ link_transforms is within the link's own extent of some drawn point.
+    points = np.array([[p.x, p.y, p.z] for m in drawn for p in m.points])
+    poses_ = hand.link_transforms(general.joint_positions)
+    tip = general.wrist_pose @ poses_[hand.fingers[0].pad_link]
+    assert np.min(np.linalg.norm(points - tip[:3, 3], axis=1)) < 0.03
+    assert {m.ns for m in markers} >= {'grasp_apso/pre_grasp_hand', 'grasp_apso/approach'}
+    serialize_message(ros_markers.grasp_markers(general, Header(frame_id='table'), hand))

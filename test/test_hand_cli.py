@@ -11,7 +11,7 @@ import pytest
 
 from grasp_apso.errors import HandDescriptionError
 from grasp_apso.tools.hand_cli import main
-from hand_files import write_allegro_like
+from hand_files import urdf_actuated_joints, write_allegro_like
 
 PAPER_YAML = Path(__file__).resolve().parents[1] / "grasp_apso" / "data" / "hand.yaml"
 
@@ -101,10 +101,24 @@ def _start(context, name, **values):
         node.destroy_node()
 
 
-def test_node_accepts_a_urdf_hand_and_keeps_planning_with_the_paper_hand(context, allegro):
+def test_node_plans_with_the_urdf_hand_it_is_given(context, allegro):
+    from grasp_apso.model.hands.model import HandModel as AnyHand
+
     params = _start(context, "hand_ok", hand_description=str(allegro))
-    assert isinstance(params.settings.hand, PaperHand)
+    hand = params.settings.hand
+    assert isinstance(hand, AnyHand) and not isinstance(hand, PaperHand)
     assert params.settings["hand_description"] == str(allegro)
+    joints = urdf_actuated_joints(allegro)  # independent of the loader
+    assert list(hand.actuated_joints) == joints and len(joints) == 16
+    assert hand.spheres  # the search's sphere cover is built at start-up, not per request
+
+
+def test_node_keeps_the_paper_hand_for_a_yaml_or_no_description(context):
+    from grasp_apso.model.hand import default_hand_path
+
+    for values in ({}, {"hand_description": str(default_hand_path())}):
+        params = _start(context, "hand_paper", **values)
+        assert isinstance(params.settings.hand, PaperHand)
 
 
 @pytest.mark.parametrize("kind", ["missing_mesh", "suffix", "config"])

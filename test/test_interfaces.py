@@ -385,6 +385,7 @@ def test_grasp_message_carries_the_design_fields():
         'id': 'string',
         'grasp_posture': 'sensor_msgs/JointState',
         'pre_grasp_posture': 'sensor_msgs/JointState',
+        'hand_trajectory': 'trajectory_msgs/JointTrajectory',  # DESIGN.md "Replies for any hand"
         'grasp_pose': 'geometry_msgs/PoseStamped',
         'pre_grasp_pose': 'geometry_msgs/PoseStamped',
         'approach_direction': 'geometry_msgs/Vector3Stamped',

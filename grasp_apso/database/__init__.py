@@ -26,12 +26,17 @@ source_sha256             string               SHA-256 of the file's bytes
 scale                     float64              file units x scale = metres
 mesh_hash                 string               ``GraspObject.mesh_hash`` (the lookup key)
 hand_name                 string               the hand description's ``name``
+hand_hash                 string               sha256 of the hand (a general hand's
+                                               ``source_hash``, the paper hand's YAML); a
+                                               lookup answers only for the same hand
 options_key               string               16 hex digits of SHA-256 of ``options``
 rank                      int32                0 = best (as planned)
-joint_positions           float64[18]          grasp posture, JointState order of the hand;
-                                               wrist angles of the object frame
-pre_grasp_positions       float64[18]          open pre-shape, same wrist angles
-wrist_position            float64[3]           palm frame at the grasp (``wrist_in_object``)
+joint_positions           list<float64>        grasp posture, JointState order of the hand
+                                               (the paper hand: 18, its wrist angles of the
+                                               object frame; a general hand: its actuated
+                                               joints)
+pre_grasp_positions       list<float64>        open pre-shape, same joints
+wrist_position            float64[3]           palm (root link) at the grasp (``wrist_in_object``)
 wrist_quaternion          float64[4]
 pre_grasp_position        float64[3]           wrist retreated by approach_distance
 pre_grasp_quaternion      float64[4]
@@ -58,6 +63,9 @@ Table ``failures`` (``DB/_failures``, one row per failed attempt): object_id, so
 source_sha256 (null when the file could not be read), scale, hand_name, options_key,
 error_type, error (the message, naming the field), retry (False: deterministic, skipped by
 a rerun unless ``--retry-failed``), package_version, created.
+
+Schema version 2 (this one) added ``hand_hash`` and variable-length joint vectors; files of
+version 1 are read as the shipped paper hand's rows.
 """
 
 from .lookup import GraspDatabase

@@ -31,7 +31,7 @@ from typing import Callable, TextIO
 
 from .. import __version__
 from ..errors import ObjectError
-from ..model.hand import load_hand
+from ..model.planning_hand import is_general_hand, load_planning_hand
 from ..model.mesh_checks import DEFAULT_MAX_TRIANGLES
 from ..model.mesh_files import DEFAULT_MAX_BYTES
 from ..search.options import PlanOptions
@@ -59,7 +59,9 @@ class BatchConfig:
     table : bool
         Default of the manifest's ``table`` flag.
     hand_path : str or None
-        Hand description; None = the shipped hand.
+        Hand description (.urdf, .xml or .yaml); None = the shipped hand.
+    hand_config : str or None
+        Its override config.
     engine : "local" | "ray"
     workers : int or None
         Local processes, or CPUs of a private local Ray; None = all cores.
@@ -82,6 +84,7 @@ class BatchConfig:
     seed: int = 0
     table: bool = False
     hand_path: str | None = None
+    hand_config: str | None = None
     engine: str = "local"
     workers: int | None = None
     ray_address: str | None = None
@@ -123,17 +126,18 @@ class BatchSummary:
 
 
 def options_document(options: PlanOptions, hand_name: str, table: bool,
-                     pose: tuple[float, ...] | None) -> str:
+                     pose: tuple[float, ...] | None, hand_hash: str = "") -> str:
     """The canonical JSON of what determines an object's grasps (besides its mesh and seed).
 
     ``pose`` counts only with a table or the simulation (otherwise the grasps, stored in the
-    object frame, do not depend on it).
+    object frame, do not depend on it). ``hand_hash`` (the hand's content) is part of it, so
+    a changed hand file is planned again.
     """
     plan = asdict(options)
     plan.pop("decomposition_timeout", None)  # a time bound of the simulation, not what the grasps are
     if plan.get("wrist_position") is not None:
         plan["wrist_position"] = [float(v) for v in plan["wrist_position"]]
-    doc = {"plan": plan, "hand": hand_name, "table": bool(table),
+    doc = {"plan": plan, "hand": hand_name, "table": bool(table), **({"hand_hash": hand_hash} if hand_hash else {}),
            "pose": list(pose) if pose is not None and (table or options.simulate) else None}
     return json.dumps(doc, sort_keys=True, separators=(",", ":"))
 
@@ -272,14 +276,16 @@ def run_batch(inputs: list[str], config: BatchConfig, stream: TextIO | None = No
 
 def _run_locked(specs: list[ObjectSpec], config: BatchConfig, store: GraspStore, summary: BatchSummary,
                 stream: TextIO, on_written) -> None:
-    hand = load_hand(config.hand_path)
+    hand = load_planning_hand(config.hand_path, config.hand_config)
     done_sources, done_meshes, bad = _resume_state(store)
     buffers = _Buffers(store, config)
     todo: list[tuple[ObjectSpec, str, str, str, bool]] = []
     queued: set = set()
     for spec in specs:
         table = config.table if spec.table is None else spec.table
-        ojson = options_document(config.options, hand.name, table, spec.pose)
+        # The paper hand's documents (and so its resume keys) stay those of earlier databases.
+        ojson = options_document(config.options, hand.name, table, spec.pose,
+                                 hand.hash if is_general_hand(hand.hand) else "")
         okey = options_key(ojson)
         sha = None
         try:
@@ -371,7 +377,7 @@ def _make_task(item, config: BatchConfig, buffers: _Buffers, summary: BatchSumma
         object_id=spec.object_id, source_path=spec.path, data=data, source_sha256=sha_now,
         scale=float(spec.scale), pose=spec.pose, table=bool(table),
         seed=object_seed(config.seed, sha_now, spec.scale), options=asdict(config.options),
-        options_json=ojson, options_key=okey, hand_path=config.hand_path,
+        options_json=ojson, options_key=okey, hand_path=config.hand_path, hand_config=config.hand_config,
         max_triangles=config.max_triangles,
     )
 

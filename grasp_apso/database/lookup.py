@@ -21,6 +21,11 @@ s ranked: force closure first, then held in simulation, not simulated, dropped, 
 The object's own part of the approach was checked when the grasp was planned (it does not
 depend on the pose); pass ``obj_bvh`` to check it again, e.g. for a longer approach distance.
 The database is read once: grasps written after :meth:`open` are not seen (open it again).
+
+A database is opened for one hand and sees only that hand's rows: those whose ``hand_hash``
+is the hand's (:class:`~grasp_apso.model.planning_hand.PlanningHand`; rows of schema 1 are
+the shipped paper hand's). A general hand's grasps are re-checked against the scene with its
+exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`).
 """
 
 from __future__ import annotations
@@ -37,7 +42,8 @@ import pyarrow as pa
 from scipy.spatial.transform import Rotation
 
 from ..errors import DatabaseError, InputError
-from ..model.hand import HandModel, load_hand
+from ..model.hand import HandModel
+from ..model.planning_hand import PlanningHand, is_general_hand, load_planning_hand, paper_hand_hash
 from ..search.candidates import planning_joint_positions, pre_grasp_pose
 from ..search.result import SIM_DROPPED, SIM_HELD, Contact, GraspCandidate
 from .schema import GRASP_SCHEMA
@@ -49,7 +55,7 @@ __all__ = ["GraspDatabase", "FIELD"]
 FIELD = "grasp_database"
 
 _COLUMNS = [
-    "object_id", "mesh_hash", "hand_name", "options_key", "rank", "joint_positions",
+    "object_id", "mesh_hash", "hand_name", "hand_hash", "options_key", "rank", "joint_positions",
     "pre_grasp_positions", "wrist_position", "wrist_quaternion", "approach_distance",
     "grasp_quality", "fitness", "epsilon", "force_closure", "valid", "scene_distance", "sim_result",
     "sim_max_shift", "sim_max_turn", "contact_points", "contact_normals", "contact_fingers",
@@ -62,8 +68,8 @@ class _Entry:
 
     object_id: str
     wrist: np.ndarray          # (n, 4, 4) palm frame in the object frame
-    closed: np.ndarray         # (n, 18) grasp posture (object-frame wrist angles)
-    opened: np.ndarray         # (n, 18) pre-shape
+    closed: np.ndarray         # (n, J) grasp posture (the paper hand: object-frame wrist angles)
+    opened: np.ndarray         # (n, J) pre-shape
     grasp_quality: np.ndarray
     fitness: np.ndarray
     epsilon: np.ndarray
@@ -84,26 +90,31 @@ class GraspDatabase:
     """An opened grasp database (read-only, in memory). Build it with :meth:`open`."""
 
     def __init__(self, path: Path, entries: dict[tuple[str, str], _Entry], rows: int, seconds: float,
-                 hand: HandModel):
+                 hand: PlanningHand, other_rows: int = 0):
         self.path = path
         self._entries = entries
         self.rows = rows
         self.load_seconds = seconds
-        self.hand = hand
+        self.planning_hand = hand
+        self.hand = hand.hand
+        #: Rows of other hands (another ``hand_hash``), never answered.
+        self.other_rows = other_rows
+        self._general = is_general_hand(self.hand)
         self._frames: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ opening
     @classmethod
-    def open(cls, path: str | os.PathLike, hand: HandModel | None = None) -> "GraspDatabase":
+    def open(cls, path: str | os.PathLike, hand: Any = None) -> "GraspDatabase":
         """Read and index a grasp database: a directory written by ``grasp_apso_batch``, or a
         single Parquet file with the grasps table's columns.
 
         Parameters
         ----------
         path : path
-        hand : HandModel, optional
-            The hand whose grasps are looked up (finger points, scene checks); default the
-            shipped hand.
+        hand : PlanningHand or HandModel, optional
+            The hand whose grasps are looked up (only rows of its ``hand_hash``; finger
+            points, scene checks); default the shipped paper hand. A paper ``HandModel`` is
+            taken as the shipped one's hash (pass a PlanningHand for another YAML).
 
         Raises
         ------
@@ -125,8 +136,12 @@ class GraspDatabase:
         else:
             raise DatabaseError(f"{FIELD}: {p} does not exist (expected a grasp database directory "
                                 f"with {MARKER}, or a Parquet file)", FIELD)
-        entries = _index(table, p)
-        return cls(p, entries, table.num_rows, time.perf_counter() - t0, hand or load_hand())
+        planning = _planning_hand(hand)
+        n_joints = len(planning.joint_names)
+        mine = np.asarray(table.column("hand_hash").to_numpy(zero_copy_only=False), dtype=object) == planning.hash
+        entries = _index(table.filter(pa.array(mine, pa.bool_())), p, n_joints)
+        return cls(p, entries, int(mine.sum()), time.perf_counter() - t0, planning,
+                   other_rows=int(table.num_rows - mine.sum()))
 
     # ------------------------------------------------------------------ queries
     def __len__(self) -> int:
@@ -155,6 +170,7 @@ class GraspDatabase:
         max_grasps: int = 5,
         *,
         obj_bvh: Any = None,
+        obj: Any = None,
     ) -> list[GraspCandidate]:
         """Stored grasps of an object moved to ``pose`` and filtered by ``scene``, best first.
 
@@ -176,6 +192,9 @@ class GraspDatabase:
             At most this many candidates.
         obj_bvh : fcl.BVHModel, optional
             The object's mesh in the object frame, to check the approach against it too.
+        obj : GraspObject, optional
+            The same for a general hand (:func:`grasp_apso.geometry.any_hand_fcl.approach_report`
+            takes the object itself).
 
         Returns
         -------
@@ -197,7 +216,7 @@ class GraspDatabase:
         if entry is None or hand_name != self.hand.name:
             return []
         check_scene = scene is not None and not scene.is_empty
-        if check_scene:
+        if check_scene and not self._general:
             from ..geometry.hand_fcl import approach_report, hand_scene_distance
         closed_pts, open_pts = self._finger_points(key, entry)
         rot, trans = pose[:3, :3], pose[:3, 3]
@@ -205,7 +224,12 @@ class GraspDatabase:
         for i in range(len(entry)):
             wrist = pose @ entry.wrist[i]
             scene_distance = math.inf
-            if check_scene:
+            if check_scene and self._general:
+                scene_distance = self._general_scene_distance(entry, i, wrist, scene, pose, obj, clearance,
+                                                              approach_distance)
+                if not scene_distance >= clearance:
+                    continue
+            elif check_scene:
                 d = hand_scene_distance(self.hand, entry.closed[i], wrist, scene)
                 if not d >= clearance:
                     continue
@@ -214,7 +238,7 @@ class GraspDatabase:
                 if not report.clear:
                     continue
                 scene_distance = min(d, report.min_scene_distance)
-            pre = pre_grasp_pose(wrist, approach_distance)
+            pre = self._pre_grasp_pose(wrist, approach_distance)
             a, b = entry.contact_range[i]
             points = entry.contact_points[a:b] @ rot.T + trans
             normals = entry.contact_normals[a:b] @ rot.T
@@ -223,9 +247,9 @@ class GraspDatabase:
             rank = len(out)
             out.append(GraspCandidate(
                 id=f"g{rank}", rank=rank,
-                joint_positions=planning_joint_positions(entry.closed[i], wrist),
-                pre_grasp_positions=planning_joint_positions(entry.opened[i], wrist),
-                wrist_pose=wrist, pre_grasp_pose=pre, approach=wrist[:3, 2].copy(),
+                joint_positions=self._joints(entry.closed[i], wrist),
+                pre_grasp_positions=self._joints(entry.opened[i], wrist),
+                wrist_pose=wrist, pre_grasp_pose=pre,
                 approach_distance=float(approach_distance),
                 grasp_quality=float(entry.grasp_quality[i]), fitness=float(entry.fitness[i]),
                 epsilon=float(entry.epsilon[i]), force_closure=bool(entry.force_closure[i]), valid=True,
@@ -234,13 +258,52 @@ class GraspDatabase:
                 sim_max_turn=float(entry.sim_max_turn[i]), wrist_in_object=entry.wrist[i].copy(),
                 joints=closed_pts[i] @ wrist[:3, :3].T + wrist[:3, 3],
                 pre_grasp_joints=open_pts[i] @ pre[:3, :3].T + pre[:3, 3],
+                approach=self._approach(wrist),
             ))
             if len(out) == max_grasps:
                 break
         return out
 
+    def _joints(self, q: np.ndarray, wrist: np.ndarray) -> np.ndarray:
+        """Stored joints -> the reply's: the paper hand's wrist angles for the planning frame."""
+        return np.array(q, dtype=float) if self._general else planning_joint_positions(q, wrist)
+
+    def _approach(self, wrist: np.ndarray) -> np.ndarray:
+        """Unit approach: the palm normal in the planning frame (the paper palm's +z)."""
+        if not self._general:
+            return wrist[:3, 2].copy()
+        n = wrist[:3, :3] @ np.asarray(self.hand.palm_normal, float)
+        return n / np.linalg.norm(n)
+
+    def _pre_grasp_pose(self, wrist: np.ndarray, distance: float) -> np.ndarray:
+        if not self._general:
+            return pre_grasp_pose(wrist, distance)
+        pre = wrist.copy()
+        pre[:3, 3] -= distance * self._approach(wrist)
+        return pre
+
+    def _general_scene_distance(self, entry: _Entry, i: int, wrist: np.ndarray, scene: Any, pose: np.ndarray,
+                                obj: Any, clearance: float, approach_distance: float) -> float:
+        """A general hand's least distance to the scene at the grasp and along the approach
+        (python-fcl on its exact geometry); -inf when the approach hits the object early."""
+        from ..geometry.any_hand_fcl import HandCollision, approach_report, scene_distance
+
+        hc = HandCollision(self.hand)  # built once per hand (cached by its source_hash)
+        d = scene_distance(hc, entry.closed[i], wrist, scene)
+        if not d >= clearance:
+            return d
+        report = approach_report(hc, entry.opened[i], wrist, self._approach(wrist), approach_distance, scene,
+                                 obj, pose if obj is not None else None, clearance=clearance)
+        if report.hits_object:
+            return -math.inf
+        return min(d, float(report.min_scene_distance))
+
     def _finger_points(self, key: tuple[str, str], entry: _Entry) -> tuple[np.ndarray, np.ndarray]:
-        """Finger points (n, 5, 4, 3) in the palm frame, closed and open (computed once)."""
+        """Finger points (n, 5, 4, 3) in the palm frame, closed and open (computed once);
+        (n, 0, 4, 3) for a general hand (drawn from its own geometry)."""
+        if self._general:
+            empty = np.zeros((len(entry), 0, 4, 3))
+            return empty, empty
         cached = self._frames.get(key)
         if cached is None:
             closed = self.hand.finger_frames(entry.closed)[..., :3, 3]
@@ -250,21 +313,40 @@ class GraspDatabase:
 
 
 # ---------------------------------------------------------------------- building the index
-def _index(table: pa.Table, path: Path) -> dict[tuple[str, str], _Entry]:
-    """Group the valid rows by (mesh_hash, hand_name), best first, as numpy arrays."""
+def _planning_hand(hand: Any) -> PlanningHand:
+    """The hand a database is opened for, with its identity (see :meth:`GraspDatabase.open`)."""
+    if isinstance(hand, PlanningHand):
+        return hand
+    if hand is None:
+        return load_planning_hand(None)
+    if is_general_hand(hand):
+        return PlanningHand(hand, hand.name, hand.source_hash)
+    if isinstance(hand, HandModel):
+        return PlanningHand(hand, hand.name, paper_hand_hash())
+    raise InputError(f"hand: expected a PlanningHand or HandModel, got {type(hand).__name__}", "hand")
+
+
+def _index(table: pa.Table, path: Path, n_joints: int = 18) -> dict[tuple[str, str], _Entry]:
+    """Group the valid rows of one hand by (mesh_hash, hand_name), best first, as numpy
+    arrays; every joint vector must hold ``n_joints`` values."""
     if table.num_rows == 0:
         return {}
     cols = {name: table.column(name).combine_chunks() for name in _COLUMNS}
 
     def fixed(name: str, n: int) -> np.ndarray:
-        flat = cols[name].flatten().to_numpy(zero_copy_only=False)
+        column = cols[name]
+        if pa.types.is_list(column.type):
+            lengths = np.diff(column.offsets.to_numpy())
+            if np.any(lengths != n):
+                raise ValueError(f"{name}: rows of {sorted(set(lengths.tolist()) - {n})} values, the hand has {n}")
+        flat = column.flatten().to_numpy(zero_copy_only=False)
         return np.asarray(flat, dtype=float).reshape(-1, n)
 
     def plain(name: str, dtype) -> np.ndarray:
         return np.asarray(cols[name].to_numpy(zero_copy_only=False), dtype=dtype)
 
     try:
-        closed, opened = fixed("joint_positions", 18), fixed("pre_grasp_positions", 18)
+        closed, opened = fixed("joint_positions", n_joints), fixed("pre_grasp_positions", n_joints)
         position, quat = fixed("wrist_position", 3), fixed("wrist_quaternion", 4)
         if not (np.all(np.isfinite(closed)) and np.all(np.isfinite(opened)) and np.all(np.isfinite(position))):
             raise ValueError("non-finite joint or wrist values")

@@ -1,10 +1,17 @@
 """The grasp database's tables: Arrow schemas and the conversion of planned candidates to rows.
 
 Poses are stored in the OBJECT frame, so a stored grasp can be moved to any request pose
-(``wrist_pose = pose @ wrist_in_object``). Wrist angles inside the stored joint vectors are
-those of the object frame (the plan pose taken as identity); the reader recomputes them for
-the request's planning frame. Units: metres, radians, seconds; quaternions (x, y, z, w).
+(``wrist_pose = pose @ wrist_in_object``). The paper hand's joint vectors (18 values) end
+with wrist angles of the object frame (the plan pose taken as identity); the reader
+recomputes them for the request's planning frame. A general hand's vectors are its
+``actuated_joints`` (no wrist angles; ``wrist_*`` is its root link). Every row names its
+hand: ``hand_name`` and ``hand_hash`` (:mod:`grasp_apso.model.planning_hand`).
+Units: metres, radians, seconds; quaternions (x, y, z, w).
 See :mod:`grasp_apso.database` for the column table.
+
+Schema versions: 1 had ``joint_positions`` / ``pre_grasp_positions`` as float64[18] and no
+``hand_hash``; its files are read as the shipped paper hand's rows (:data:`LEGACY_DEFAULTS`,
+:func:`~grasp_apso.database.store.read_file`).
 """
 
 from __future__ import annotations
@@ -22,13 +29,13 @@ from ..search.candidates import planning_joint_positions
 from ..search.result import GraspCandidate
 
 __all__ = [
-    "FORMAT_NAME", "SCHEMA_VERSION", "GRASP_SCHEMA", "FAILURE_SCHEMA", "candidate_rows",
+    "FORMAT_NAME", "SCHEMA_VERSION", "GRASP_SCHEMA", "FAILURE_SCHEMA", "LEGACY_DEFAULTS", "candidate_rows",
     "options_key", "empty_columns", "rigid_inverse",
 ]
 
 #: Written into the marker file and every Parquet file's metadata.
 FORMAT_NAME = "grasp_apso.grasp_database"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 _F64 = pa.float64()
 
@@ -46,10 +53,11 @@ GRASP_SCHEMA = pa.schema(
         pa.field("scale", _F64, nullable=False),
         pa.field("mesh_hash", pa.string(), nullable=False),
         pa.field("hand_name", pa.string(), nullable=False),
+        pa.field("hand_hash", pa.string(), nullable=False),
         pa.field("options_key", pa.string(), nullable=False),
         pa.field("rank", pa.int32(), nullable=False),
-        pa.field("joint_positions", _vec(18), nullable=False),
-        pa.field("pre_grasp_positions", _vec(18), nullable=False),
+        pa.field("joint_positions", pa.list_(_F64), nullable=False),
+        pa.field("pre_grasp_positions", pa.list_(_F64), nullable=False),
         pa.field("wrist_position", _vec(3), nullable=False),
         pa.field("wrist_quaternion", _vec(4), nullable=False),
         pa.field("pre_grasp_position", _vec(3), nullable=False),
@@ -76,9 +84,21 @@ GRASP_SCHEMA = pa.schema(
     ],
     metadata={
         "format": FORMAT_NAME, "schema_version": str(SCHEMA_VERSION), "table": "grasps",
+        # The paper hand's; a general hand's rows follow its actuated_joints.
         "joint_names": json.dumps(list(JOINT_NAMES)),
     },
 )
+
+
+def _paper_hash() -> str:
+    from ..model.planning_hand import paper_hand_hash
+
+    return paper_hand_hash()
+
+
+#: Columns that files of an older schema lack -> a function giving their value: such rows
+#: are the shipped paper hand's.
+LEGACY_DEFAULTS = {"hand_hash": _paper_hash}
 
 #: One row per failed attempt at an object.
 FAILURE_SCHEMA = pa.schema(
@@ -118,7 +138,7 @@ def rigid_inverse(t: np.ndarray) -> np.ndarray:
 
 
 def candidate_rows(
-    candidates: Iterable[GraspCandidate], pose: np.ndarray, common: dict[str, Any],
+    candidates: Iterable[GraspCandidate], pose: np.ndarray, common: dict[str, Any], wrist_angles: bool = True,
 ) -> dict[str, list]:
     """Rows (column -> list) of planned candidates, moved into the object frame.
 
@@ -129,8 +149,11 @@ def candidate_rows(
     pose : (4, 4) float
         The object pose the plan was run with (object -> planning frame).
     common : dict
-        Values of the per-object columns (``object_id``, ``mesh_hash``, ``options``, ``seed``,
-        ``created`` ...), repeated on every row.
+        Values of the per-object columns (``object_id``, ``mesh_hash``, ``hand_name``,
+        ``hand_hash``, ``options``, ``seed``, ``created`` ...), repeated on every row.
+    wrist_angles : bool
+        The paper hand: its last three joint values are wrist angles, stored for the object
+        frame. False for a general hand (joint vectors stored as they are).
 
     Returns
     -------
@@ -140,6 +163,7 @@ def candidate_rows(
     cols = empty_columns(GRASP_SCHEMA)
     inv = rigid_inverse(np.asarray(pose, dtype=float))
     rot = inv[:3, :3]
+    joints = planning_joint_positions if wrist_angles else (lambda q, _wrist: np.asarray(q, dtype=float))
     for c in candidates:
         wrist = inv @ np.asarray(c.wrist_pose, dtype=float)
         pre = inv @ np.asarray(c.pre_grasp_pose, dtype=float)
@@ -147,8 +171,8 @@ def candidate_rows(
         pp, pq = matrix_to_pose(pre)
         row = {
             "rank": int(c.rank),
-            "joint_positions": planning_joint_positions(c.joint_positions, wrist).tolist(),
-            "pre_grasp_positions": planning_joint_positions(c.pre_grasp_positions, wrist).tolist(),
+            "joint_positions": joints(c.joint_positions, wrist).tolist(),
+            "pre_grasp_positions": joints(c.pre_grasp_positions, wrist).tolist(),
             "wrist_position": wp.tolist(), "wrist_quaternion": wq.tolist(),
             "pre_grasp_position": pp.tolist(), "pre_grasp_quaternion": pq.tolist(),
             "approach": (rot @ np.asarray(c.approach, dtype=float)).tolist(),

@@ -46,7 +46,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import DatabaseError
-from .schema import FAILURE_SCHEMA, FORMAT_NAME, GRASP_SCHEMA, SCHEMA_VERSION
+from .schema import FAILURE_SCHEMA, FORMAT_NAME, GRASP_SCHEMA, LEGACY_DEFAULTS, SCHEMA_VERSION
 
 __all__ = ["GraspStore", "MARKER", "LEGACY_MARKER", "TABLES", "pid_alive", "read_parts"]
 
@@ -111,16 +111,31 @@ def read_parts(folder: Path, schema: pa.Schema, columns: list[str] | None = None
     return pa.concat_tables(tables)
 
 
+def _legacy_type(got: pa.DataType, want: pa.DataType) -> bool:
+    """A schema-1 fixed-size list where schema 2 has a list of the same values."""
+    return (pa.types.is_fixed_size_list(got) and pa.types.is_list(want)
+            and got.value_type == want.value_type)
+
+
 def read_file(path: Path, want: pa.Schema, field: str = "grasp_database") -> pa.Table:
-    """One Parquet file, checked to hold the columns of ``want`` with their types."""
+    """One Parquet file, checked to hold the columns of ``want`` with their types.
+
+    Files of an older schema are read as the current one: a column they lack that
+    :data:`~grasp_apso.database.schema.LEGACY_DEFAULTS` knows gets its value on every row,
+    float64[18] joint vectors become lists."""
     try:
-        table = pq.read_table(path, columns=want.names)
+        present = set(pq.read_schema(path).names)
+        legacy = [n for n in want.names if n not in present and n in LEGACY_DEFAULTS]
+        table = pq.read_table(path, columns=[n for n in want.names if n not in legacy])
     except (OSError, pa.ArrowException, ValueError) as exc:
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DatabaseError(f"{field}: cannot read {path}: {detail}", field) from None
+    for name in legacy:
+        table = table.append_column(want.field(name), pa.array([LEGACY_DEFAULTS[name]()] * table.num_rows,
+                                                               want.field(name).type))
     for f in want:
         got = table.schema.field(f.name).type
-        if got != f.type:
+        if got != f.type and not _legacy_type(got, f.type):
             raise DatabaseError(
                 f"{field}: {path}: column {f.name} has type {got}, expected {f.type}", field)
     return table.select(want.names).cast(want)
@@ -217,6 +232,10 @@ class GraspStore:
                     data = _read_json(self.root / LEGACY_MARKER) or {}
                     self._atomic_bytes(self.root / MARKER, _marker_text(data.get("created")))
                     (self.root / LEGACY_MARKER).unlink()
+            data = _read_json(self.root / MARKER) if (self.root / MARKER).is_file() else None
+            if data is not None and int(data.get("schema_version", SCHEMA_VERSION)) < SCHEMA_VERSION:
+                # Parts of the new schema are about to be added: older readers must refuse.
+                self._atomic_bytes(self.root / MARKER, _marker_text(data.get("created")))
         except OSError as exc:
             raise DatabaseError(f"{self.field}: cannot move {self.root} to the current layout: "
                                 f"{exc.strerror or exc}", self.field) from None

@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import GraspApsoError, PlanningError
-from ..model.hand import load_hand
+from ..model.planning_hand import is_general_hand, load_planning_hand
 from ..model.mesh_checks import DEFAULT_MAX_TRIANGLES
 from ..model.object_source import MeshFile, resolve_object
 from ..model.poses import pose_to_matrix
@@ -62,7 +62,9 @@ class ObjectTask:
     options_json, options_key : str
         Stored with every row (the resume key).
     hand_path : str or None
-        Hand description file; None = the shipped hand.
+        Hand description file (.urdf, .xml or .yaml); None = the shipped hand.
+    hand_config : str or None
+        Its override config (:func:`~grasp_apso.model.planning_hand.load_planning_hand`).
     max_triangles : int
     attempt : int
         0 for the first try; the local engine retries a task once after a worker died.
@@ -80,6 +82,7 @@ class ObjectTask:
     options_json: str
     options_key: str
     hand_path: str | None = None
+    hand_config: str | None = None
     max_triangles: int = DEFAULT_MAX_TRIANGLES
     attempt: int = 0
 
@@ -209,9 +212,9 @@ def _plan(task: ObjectTask, obj):
 
         vertices = np.asarray(obj.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3]
         kwargs["scene"] = Scene.table_under(vertices)
-    hand = load_hand(task.hand_path)
+    hand = load_planning_hand(task.hand_path, task.hand_config)  # cached: loaded once per process
     result = plan(obj, pose, PlanOptions(**task.options), rng=np.random.default_rng(task.seed),
-                  hand=hand, **kwargs)
+                  hand=hand.hand, **kwargs)
     return pose, hand, result
 
 
@@ -230,12 +233,13 @@ def run_task(task: ObjectTask) -> Outcome:
         common = {
             "object_id": task.object_id, "source_path": task.source_path,
             "source_sha256": task.source_sha256, "scale": float(task.scale),
-            "mesh_hash": obj.mesh_hash, "hand_name": hand.name, "options_key": task.options_key,
+            "mesh_hash": obj.mesh_hash, "hand_name": hand.name, "hand_hash": hand.hash,
+            "options_key": task.options_key,
             "options": task.options_json, "seed": int(task.seed), "package_version": __version__,
             "planning_time": float(result.planning_time + result.preparation_time),
             "created": _dt.datetime.now(_dt.timezone.utc),
         }
-        out.columns = candidate_rows(candidates, pose, common)
+        out.columns = candidate_rows(candidates, pose, common, wrist_angles=not is_general_hand(hand.hand))
         out.n_grasps = len(candidates)
         out.ok = True
     except GraspApsoError as exc:

@@ -62,7 +62,7 @@ def why_not_valid(result: GraspResult) -> str:
     reasons = []
     if result.n_contacts < 2:
         reasons.append(f"only {result.n_contacts} fingertip contact{'' if result.n_contacts == 1 else 's'}")
-    if not result.fcl.legal:
+    if result.fcl is not None and not result.fcl.legal:
         reasons.append("the python-fcl collision check failed")
     if not reasons:
         reasons.append("a link penetrates the object or the hand is too close to the scene")
@@ -114,8 +114,25 @@ def approach_angle_from_above(approach: np.ndarray, up: np.ndarray) -> float:
 
 
 # ----------------------------------------------------------------------------- report
+def _general_fcl_text(report) -> str:
+    """A general hand's python-fcl report (:class:`grasp_apso.geometry.any_hand_fcl.AnyHandReport`)."""
+    if report is None:
+        return "not run (grasp_apso.geometry.any_hand_fcl not available)"
+    if report.legal:
+        return (f"legal: no link penetrates the object beyond {report.tolerance * 1000:g} mm, "
+                "no links collide")
+    parts = []
+    if report.deepest_penetration > report.tolerance:
+        parts.append(f"{report.deepest_link} {report.deepest_penetration * 1000:.1f} mm into the object")
+    if report.link_pairs_colliding:
+        parts.append("colliding links: " + ", ".join(f"{a}-{b}" for a, b in report.link_pairs_colliding))
+    return "NOT legal: " + "; ".join(parts)
+
+
 def _fcl_text(result: GraspResult) -> str:
     report = result.fcl
+    if report is None or hasattr(report, "links"):
+        return _general_fcl_text(report)
     if report.legal:
         return (f"legal: no link penetrates the object beyond {FCL_TOLERANCE_MM:g} mm, "
                 "no fingers collide")
@@ -156,11 +173,38 @@ def _approach_lines(result: GraspResult, up: np.ndarray | None) -> list[str]:
     return lines
 
 
+def _general_configuration(result: GraspResult, hand) -> list[str]:
+    """The grasp posture of a general hand: each finger's actuated joints by name, degrees,
+    with the joint limits; then the joints of no finger."""
+    names = list(result.joint_names)
+    q = np.degrees(np.asarray(result.joint_positions, float))
+    lower, upper = np.degrees(np.asarray(hand.lower, float)), np.degrees(np.asarray(hand.upper, float))
+    lines = [f"Hand configuration ({hand.name}: {len(names)} actuated joints, JointState order), degrees, "
+             "each value followed by its [limits] (* = at a limit):"]
+    groups = [(f.name, [j for j in f.joints if j in names]) for f in hand.fingers]
+    groups.append(("other", [j for j in names if all(j not in g for _, g in groups)]))
+    width = max(len(n) for n in names) + 2
+    shown: set[str] = set()
+    for finger, joints in groups:
+        for k, joint in enumerate(j for j in joints if j not in shown):
+            shown.add(joint)
+            i = names.index(joint)
+            mark = "*" if min(q[i] - lower[i], upper[i] - q[i]) < 0.05 else " "
+            lines.append(f"  {finger if k == 0 else '':<8}{joint:<{width}}{q[i]:8.1f}{mark}"
+                         f"[{lower[i]:5.0f}, {upper[i]:4.0f}]")
+    return lines
+
+
 def format_report(result: GraspResult, hand, friction: float,
                   pose_note: str = "object frame (= planning frame)", up: np.ndarray | None = None) -> str:
     """The human-readable report of the best grasp (configuration, wrist and approach,
-    contacts, quality). ``up``: the table normal, to say how far from above it comes."""
+    contacts, quality). ``up``: the table normal, to say how far from above it comes.
+    A general hand (:class:`grasp_apso.model.hands.HandModel`) lists its actuated joints by
+    name per finger and its root link's pose."""
     lines = [f"{result.algorithm.upper()} result: {_heading(result)}", ""]
+    if hasattr(hand, "actuated_joints"):
+        return "\n".join(lines + _general_configuration(result, hand) + [""] + _pose_and_rest(result, friction,
+                                                                                              pose_note, up, hand))
     lines.append("Hand configuration Cg, degrees, each value followed by its [Table 2 limits]:")
     lines.append(f"  {'finger':<8}" + "".join(f"{kind + ' (theta_i' + str(k + 1) + ')':>26}"
                                              for k, kind in enumerate(JOINT_KINDS)))
@@ -177,8 +221,27 @@ def format_report(result: GraspResult, hand, friction: float,
     lines.append("  (distal theta_i1 drives the last two joints, coupled 1.5:1; wrist: palm orientation "
                  "R = Rz Ry Rx; * = at a limit)")
     lines.append("")
+    return "\n".join(lines + _pose_and_rest(result, friction, pose_note, up, hand))
+
+
+def _general_touching(result: GraspResult, hand) -> list[str]:
+    """A general hand's links that touch the object (python-fcl), except the pad links of
+    the fingers that make the contacts."""
+    report = result.fcl
+    if report is None or not hasattr(report, "touching"):
+        return []
+    fingers = {c.finger for c in result.contacts}
+    pads = {f.pad_link for f in hand.fingers if f.name in fingers}
+    return [link for link, t in zip(report.links, report.touching) if t and link not in pads]
+
+
+def _pose_and_rest(result: GraspResult, friction: float, pose_note: str, up: np.ndarray | None, hand) -> list[str]:
+    """The report after the configuration: wrist pose, approach, contacts, quality."""
+    lines: list[str] = []
+    general = hasattr(hand, "actuated_joints")
     position, quat = poses.matrix_to_pose(result.wrist_pose)
-    lines.append(f"Wrist pose (palm frame: origin at the wrist, +x fingers, +z palm normal) in the {pose_note}:")
+    lines.append(f"Root link '{hand.root_link}' pose (the reply's grasp_pose) in the {pose_note}:" if general else
+                 f"Wrist pose (palm frame: origin at the wrist, +x fingers, +z palm normal) in the {pose_note}:")
     lines.append(f"  position     {_vec(np.asarray(position) * 1000)} mm")
     lines.append(f"  quaternion   {_vec(quat, '{:7.4f}')} (x, y, z, w)")
     lines.append(f"  standoff     {result.standoff * 1000:+.1f} mm added by the swarm to the computed "
@@ -195,7 +258,7 @@ def format_report(result: GraspResult, hand, friction: float,
         lines.append("  (none)")
     lines.append("")
     fingers = ", ".join(c.finger for c in result.contacts) or "none"
-    touching = touching_links(result)
+    touching = touching_links(result) if not general else _general_touching(result, hand)
     lines.append("Quality:")
     rows = [
         ("fitness", f"{result.fitness:.3f}", "maximised, in [0, 1] for a valid grasp (below 0: none found)"),
@@ -216,7 +279,7 @@ def format_report(result: GraspResult, hand, friction: float,
     ]
     for name, value, note in rows:
         lines.append(f"  {name:<21}{value:<10}{('  ' + note) if note else ''}".rstrip())
-    return "\n".join(lines)
+    return lines
 
 
 def format_candidates(result: GraspResult) -> str:
@@ -234,7 +297,7 @@ def format_candidates(result: GraspResult) -> str:
     lines = [f"Candidates: {len(cands)}, best first (quality = ranking score in [0, 1]; "
              "contacts L R M I T = little ring middle index thumb):", head]
     for c in cands:
-        initials = "".join(_INITIAL.get(x.finger, "?") for x in c.contacts)
+        initials = "".join(_INITIAL.get(x.finger, x.finger[:1].upper() or "?") for x in c.contacts)
         row = (f"  {c.rank + 1:>4} {c.grasp_quality:7.3f} {c.epsilon:8.4f} {_yes(c.force_closure):>3} "
                f"{f'{c.n_contacts} {initials}':<10} {_vec(np.asarray(c.wrist_pose)[:3, 3] * 1000):>24}  "
                f"{_vec(c.approach, '{:6.3f}'):>22}")

@@ -33,11 +33,13 @@ from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3, Vec
 from sensor_msgs.msg import JointState
 from shape_msgs.msg import Mesh, MeshTriangle
 from std_msgs.msg import Header
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from grasp_apso_interfaces.msg import Grasp, GraspProgress
 
 from ..model.hand import JOINT_NAMES
 from ..model.poses import matrix_to_pose, pose_to_matrix
+from ..search.hand_trajectory import hand_trajectory
 
 __all__ = [
     "reply_header",
@@ -46,6 +48,7 @@ __all__ = [
     "fill_result",
     "grasp_msg",
     "joint_state",
+    "joint_trajectory",
     "matrix_to_pose_msg",
     "mesh_to_arrays",
     "packed_mesh_to_arrays",
@@ -231,15 +234,34 @@ def _vector(values: Iterable[float]) -> Vector3:
 # --------------------------------------------------------------------------------------
 
 
-def joint_state(positions: Any, header: Header) -> JointState:
-    """A JointState of the 18 :data:`~grasp_apso.model.hand.JOINT_NAMES` (radians)."""
+def joint_state(positions: Any, header: Header, names: tuple[str, ...] = JOINT_NAMES) -> JointState:
+    """A JointState of ``names`` (default the paper hand's 18
+    :data:`~grasp_apso.model.hand.JOINT_NAMES`; radians, or m for a prismatic joint)."""
     values = np.asarray(positions, dtype=np.float64).reshape(-1)
-    if values.shape != (len(JOINT_NAMES),):
-        raise ValueError(f"joint positions: expected {len(JOINT_NAMES)} values, got {values.shape}")
-    return JointState(header=header, name=list(JOINT_NAMES), position=[float(v) for v in values])
+    if values.shape != (len(names),):
+        raise ValueError(f"joint positions: expected {len(names)} values, got {values.shape}")
+    return JointState(header=header, name=list(names), position=[float(v) for v in values])
 
 
-def grasp_msg(candidate: Any, header: Header) -> Grasp:
+def joint_trajectory(times: Any, positions: Any, header: Header, names: tuple[str, ...]) -> JointTrajectory:
+    """A ``trajectory_msgs/JointTrajectory`` over ``names``.
+
+    times : (K,) float, s from the start, increasing; positions : (K, len(names)) float.
+    """
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    q = np.asarray(positions, dtype=np.float64)
+    if q.shape != (len(t), len(names)):
+        raise ValueError(f"trajectory: expected positions of shape {(len(t), len(names))}, got {q.shape}")
+    points = []
+    for ti, qi in zip(t.tolist(), q.tolist()):
+        point = JointTrajectoryPoint(positions=qi)
+        sec = int(np.floor(ti))
+        point.time_from_start.sec, point.time_from_start.nanosec = sec, int(round((ti - sec) * 1e9))
+        points.append(point)
+    return JointTrajectory(header=header, joint_names=list(names), points=points)
+
+
+def grasp_msg(candidate: Any, header: Header, names: tuple[str, ...] = JOINT_NAMES, hand: Any = None) -> Grasp:
     """One ranked candidate as ``grasp_apso_interfaces/Grasp`` (field by field, SI,
     everything in the request's planning frame ``header.frame_id``).
 
@@ -248,11 +270,17 @@ def grasp_msg(candidate: Any, header: Header) -> Grasp:
     candidate : grasp_apso.search.result.GraspCandidate
     header : std_msgs.msg.Header
         The request's ``object_pose.header``.
+    names : tuple of str
+        The result's ``joint_names`` (the hand's actuated joints; the paper hand's 18).
+    hand : the hand planned with (paper or general ``HandModel``; None = the paper's)
+        Its joint limits bound the squeeze of ``hand_trajectory``
+        (:func:`grasp_apso.search.hand_trajectory.hand_trajectory`).
     """
     msg = Grasp()
     msg.id = str(candidate.id)
-    msg.grasp_posture = joint_state(candidate.joint_positions, header)
-    msg.pre_grasp_posture = joint_state(candidate.pre_grasp_positions, header)
+    msg.grasp_posture = joint_state(candidate.joint_positions, header, names)
+    msg.pre_grasp_posture = joint_state(candidate.pre_grasp_positions, header, names)
+    msg.hand_trajectory = joint_trajectory(*hand_trajectory(candidate, hand), header, names)
     msg.grasp_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(candidate.wrist_pose))
     msg.pre_grasp_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(candidate.pre_grasp_pose))
     msg.approach_direction = Vector3Stamped(header=header, vector=_vector(candidate.approach))
@@ -277,11 +305,12 @@ def _fill_quality_and_contacts(msg: Any, grasp: Any) -> None:
 
 
 def fill_result(msg: Any, result: Any, header: Header, planning_time: float | None = None,
-                source: str = "planned") -> Any:
+                source: str = "planned", hand: Any = None) -> Any:
     """Copy a planner result into a ``PlanGrasp`` response or action result.
 
     ``grasps`` gets every ranked candidate (:func:`grasp_msg`), best first; the top-level
-    fields are ``grasps[0]``: ``configuration`` (JointState of the 18 joints, ``header`` =
+    fields are ``grasps[0]``: ``configuration`` (JointState of ``result.joint_names``: the
+    hand's actuated joints, the paper hand's 18 names; ``header`` =
     the request's), ``wrist_pose``, ``fitness``, ``epsilon_quality``, ``force_closure`` and
     the contacts (points, outward normals, fingers; planning frame). Also sets
     ``iterations_run``, ``planning_time`` and ``grasp_source``. ``success``, ``message``
@@ -299,16 +328,18 @@ def fill_result(msg: Any, result: Any, header: Header, planning_time: float | No
         Time to report; default the planner's preparation plus planning time.
     source : str
         ``grasp_source``: "planned" or "database".
+    hand : HandModel, optional
+        The hand planned with (see :func:`grasp_msg`); None = the paper's hand.
     """
-    names = tuple(result.joint_names)
-    if names != JOINT_NAMES:
-        raise ValueError(f"result: unexpected joint names {names}")
+    names = tuple(str(n) for n in result.joint_names)
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"result: joint names must be distinct and not empty, got {names}")
     candidates = tuple(getattr(result, "candidates", ()) or ())
     best = candidates[0] if candidates else result
-    msg.configuration = joint_state(best.joint_positions, header)
+    msg.configuration = joint_state(best.joint_positions, header, names)
     msg.wrist_pose = PoseStamped(header=header, pose=matrix_to_pose_msg(best.wrist_pose))
     _fill_quality_and_contacts(msg, best)
-    msg.grasps = [grasp_msg(c, header) for c in candidates]
+    msg.grasps = [grasp_msg(c, header, names, hand) for c in candidates]
     msg.grasp_source = source
     msg.iterations_run = int(result.iterations_run)
     if planning_time is None:

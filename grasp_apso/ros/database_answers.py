@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DatabaseError
-from ..model.hand import JOINT_NAMES, HandModel
+from ..model.hand import JOINT_NAMES
 from ..search.result import SIM_NOT_RUN, Contact, GraspCandidate
 
 __all__ = ["FIELD", "StoredGrasps", "lookup", "open_database"]
@@ -94,8 +94,10 @@ class StoredGrasps:
                 f"{1000.0 * self.planning_time:.1f} ms; nothing planned")
 
 
-def open_database(path: str, hand: HandModel) -> Any:
-    """The grasp database at ``path`` for ``hand``, or None when ``path`` is empty.
+def open_database(path: str, hand: Any) -> Any:
+    """The grasp database at ``path`` for ``hand`` (a
+    :class:`~grasp_apso.model.planning_hand.PlanningHand`: the hand and its identity), or
+    None when ``path`` is empty.
 
     Raises
     ------
@@ -119,7 +121,7 @@ def open_database(path: str, hand: HandModel) -> Any:
                             FIELD) from None
 
 
-def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: Any, options: Any,
+def lookup(database: Any, obj: Any, hand: Any, pose: np.ndarray, scene: Any, options: Any,
            obj_bvh: Any = None, preparation_time: float = 0.0) -> tuple[StoredGrasps | None, str]:
     """Answer a request from ``database`` when a stored grasp survives its scene.
 
@@ -129,7 +131,8 @@ def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: An
     obj : GraspObject
         The request's object (its ``mesh_hash`` is the key).
     hand : HandModel
-        The node's hand (its ``name`` is the key).
+        The node's hand (its ``name`` is the key; the database holds only rows of its
+        ``hand_hash``, see :meth:`GraspDatabase.open <grasp_apso.database.lookup.GraspDatabase.open>`).
     pose : (4, 4) float
         Object frame -> planning frame.
     scene : Scene or None
@@ -154,7 +157,8 @@ def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: An
     t0 = time.perf_counter()
     wanted = 50 if options.simulate else int(options.max_grasps)
     found = database.lookup(obj.mesh_hash, hand.name, pose, scene, clearance=options.clearance,
-                            approach_distance=options.approach_distance, max_grasps=wanted, obj_bvh=obj_bvh)
+                            approach_distance=options.approach_distance, max_grasps=wanted, obj_bvh=obj_bvh,
+                            obj=obj if obj_bvh is not None else None)
     if options.simulate:
         found = [c for c in found if c.sim_result != SIM_NOT_RUN][: int(options.max_grasps)]
         found = [dataclasses.replace(c, rank=i, id=f"g{i}") for i, c in enumerate(found)]
@@ -163,4 +167,5 @@ def lookup(database: Any, obj: Any, hand: HandModel, pose: np.ndarray, scene: An
         why = ("none of them simulated (the request asks for the simulation check) or kept after the scene check"
                if options.simulate else "none kept after the scene check (clearance and approach)")
         return None, f"the grasp database holds {stored} grasp(s) of this object, {why}; planned instead"
-    return StoredGrasps(tuple(found), stored, seconds, preparation_time), ""
+    names = tuple(database.planning_hand.joint_names)
+    return StoredGrasps(tuple(found), stored, seconds, preparation_time, joint_names=names), ""

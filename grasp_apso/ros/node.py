@@ -240,7 +240,7 @@ class GraspPlannerNode(Node):
         msg.planning_time = float(outcome.worker_time)
         if outcome.result is not None:
             try:
-                fill_result(msg, outcome.result, header, planning_time=outcome.worker_time, source=outcome.source)
+                fill_result(msg, outcome.result, header, outcome.worker_time, outcome.source, self.parameters.settings.hand)
             except Exception:  # noqa: BLE001 -- request boundary
                 self.get_logger().error(f"request {request_id}: cannot convert the result\n{traceback.format_exc()}")
                 msg.success = False

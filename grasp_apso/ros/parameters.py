@@ -6,7 +6,9 @@
   ``hand_description``, ``hand_config``, ``queue_length``, ``workers``, ``grasp_database``).
 - :class:`NodeParameters`: declares them on a node, checks the start-up values with
   :meth:`Tunable.check <grasp_apso.tunables.Tunable.check>` (a bad value stops the node
-  with a message naming the parameter), loads the hand description and opens the grasp
+  with a message naming the parameter), loads the hand it plans with
+  (:func:`~grasp_apso.model.planning_hand.load_planning_hand`: the paper's for a ``.yaml``,
+  a general hand for a ``.urdf`` / ``.xml``) and opens the grasp
   database (:mod:`.database_answers`) once, and keeps a
   :class:`Settings` snapshot that requests read. Changes at run time go through a
   pre-set callback (an integer is accepted for a double), an on-set callback (read-only
@@ -29,8 +31,8 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
-from ..errors import GraspApsoError, HandDescriptionError, InputError
-from ..model.hand import HandModel, load_hand
+from ..errors import GraspApsoError, InputError
+from ..model.planning_hand import is_general_hand, load_planning_hand
 from ..search.options import PlanOptions
 from ..tunables import Tunable, ros_tunables
 from .database_answers import open_database
@@ -73,12 +75,14 @@ class Settings:
     """An immutable snapshot of the parameters: what one request uses from start to end.
 
     ``values`` maps every parameter name to its value; ``options`` are the plan options
-    made of them (a request overrides a few); ``hand`` is the hand loaded at start-up.
+    made of them (a request overrides a few); ``hand`` is the hand loaded at start-up
+    (the paper's :class:`~grasp_apso.model.hand.HandModel` or a general
+    :class:`grasp_apso.model.hands.HandModel`).
     """
 
     values: Mapping[str, Any]
     options: PlanOptions
-    hand: HandModel
+    hand: Any
 
     def __getitem__(self, name: str) -> Any:
         return self.values[name]
@@ -90,33 +94,6 @@ def _options(values: Mapping[str, Any]) -> PlanOptions:
     # The neighbourhood is clamped to the swarm size (a request may ask for fewer particles).
     settings["neighborhood_size"] = max(1, min(int(settings["neighborhood_size"]), int(settings["particles"])))
     return PlanOptions(**settings)
-
-
-def _startup_hand(description: str, config: str, node: Node) -> HandModel:
-    """The hand the planner uses, after checking ``hand_description`` and ``hand_config``
-    with the general loader (any URDF, MJCF or YAML; a bad one stops the node naming the
-    parameter). The planner plans with the paper's hand until issue 20 part 2: a URDF or
-    MJCF description is checked and reported, and the paper's hand is used."""
-    from ..model.hands.load import load_hand as load_any_hand
-
-    try:
-        general = load_any_hand(description or None, config or None, spheres=False)
-    except (GraspApsoError, ValueError) as exc:
-        text = str(exc)
-        name = "hand_config" if text.startswith("hand_config") else "hand_description"
-        if not text.startswith(name):
-            text = f"{name}: {text}"
-        raise HandDescriptionError(text, name) from None
-    try:
-        hand = load_hand(description if description.endswith((".yaml", ".yml")) else None)
-    except (GraspApsoError, ValueError) as exc:
-        raise HandDescriptionError(f"hand_description: {exc}", "hand_description") from None
-    if description and not description.endswith((".yaml", ".yml")):
-        node.get_logger().warning(
-            f"hand_description: {general.name} loaded ({len(general.fingers)} fingers, "
-            f"{len(general.actuated_joints)} actuated joints); the planner plans with the paper's hand "
-            "until the general hand reaches it")
-    return hand
 
 
 class NodeParameters:
@@ -145,9 +122,13 @@ class NodeParameters:
         allowed = str(values["allowed_mesh_dir"])
         if allowed and not os.path.isdir(allowed):
             raise InputError("allowed_mesh_dir: not a directory", "allowed_mesh_dir")
-        hand = _startup_hand(str(values["hand_description"]), str(values["hand_config"]), node)
-        self._hand = hand
-        self.database = open_database(str(values["grasp_database"]), hand)
+        #: The hand every request plans with and its identity (:mod:`grasp_apso.model.planning_hand`).
+        self.planning_hand = load_planning_hand(str(values["hand_description"]), str(values["hand_config"]))
+        hand = self._hand = self.planning_hand.hand
+        if is_general_hand(hand):
+            node.get_logger().info(f"hand_description: {hand.name} ({len(hand.fingers)} fingers, {len(hand.actuated_joints)} "
+                                   f"actuated joints: {', '.join(hand.actuated_joints)})")
+        self.database = open_database(str(values["grasp_database"]), self.planning_hand)
         self._settings = Settings(MappingProxyType(dict(values)), _options(values), hand)
         node.add_pre_set_parameters_callback(self._coerce)
         node.add_on_set_parameters_callback(self._check)

@@ -24,10 +24,12 @@ from ..geometry.decoder import (
     with_scene,
 )
 from ..model.builtin import builtin
+from ..model.hands.model import HandModel as AnyHand
 from ..model.hand import JOINT_NAMES, HandModel, load_hand
 from ..model.particle import LAYOUT
 from ..model.scene import Scene
 from ..quality.fitness import evaluate
+from .any_hand_planner import plan_any_hand
 from .archive import LeaderArchive
 from .grg import GuidedGenerator, ShapeClass, classify_shape
 from .options import ALGORITHMS, PlanOptions
@@ -139,7 +141,9 @@ def plan(
     rng : np.random.Generator, optional
         Source of all randomness; the same seed gives the same result.
     hand : HandModel, optional
-        Hand description; the shipped paper hand when None.
+        Hand description; the shipped paper hand when None. A general hand
+        (:class:`grasp_apso.model.hands.HandModel`, :func:`grasp_apso.model.hands.load.load_hand`)
+        is planned by :func:`grasp_apso.search.any_hand_planner.plan_any_hand`.
     progress : callable(IterationStats), optional
         Called once per iteration.
     should_stop : callable() -> bool, optional
@@ -171,6 +175,8 @@ def plan(
     if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
         raise InputError(f"pose: expected a finite (4, 4) transform, got shape {pose.shape}")
     scene_obj = _scene_in_object_frame(obj, pose, scene)
+    if isinstance(hand, AnyHand):  # a general hand: its own path (the paper hand's below is unchanged)
+        return plan_any_hand(obj, pose, options, rng, hand, progress, should_stop, scene_obj, scene)
 
     t0 = time.perf_counter()
     model = prepare(obj, hand, options)

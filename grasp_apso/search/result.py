@@ -98,6 +98,9 @@ class GraspCandidate:
     wrist_in_object: np.ndarray = field(default_factory=lambda: np.eye(4), repr=False)
     joints: np.ndarray = field(default_factory=lambda: np.zeros((5, 4, 3)), repr=False)
     pre_grasp_joints: np.ndarray = field(default_factory=lambda: np.zeros((5, 4, 3)), repr=False)
+    #: (n,) the grasp posture pushed further along the closing senses (the simulation's
+    #: squeeze); empty when not computed.
+    squeeze_positions: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def n_contacts(self) -> int:
@@ -138,6 +141,9 @@ class GraspResult:
     candidates: tuple[GraspCandidate, ...] = ()
     #: Why fewer than ``max_grasps`` candidates came back ("" when all did).
     candidates_message: str = ""
+    #: The hand planned with and the sha256 of its description (and config).
+    hand_name: str = "apso_paper_hand"
+    hand_hash: str = ""
 
     @property
     def n_contacts(self) -> int:

@@ -37,7 +37,7 @@ from ..model.hand import FINGER_NAMES, HandModel
 
 from .settings import SimulationSettings
 
-__all__ = ["scene_xml", "matrix_to_quat", "object_inertia", "OBJECT_BODY"]
+__all__ = ["scene_xml", "matrix_to_quat", "object_inertia", "plane_frame", "OBJECT_BODY"]
 
 #: Name of the object's body (free joint ``object_free``).
 OBJECT_BODY = "object"
@@ -80,6 +80,25 @@ def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
 def _rx(alpha: float) -> np.ndarray:
     c, s = math.cos(alpha), math.sin(alpha)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def plane_frame(plane: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The frame of a MuJoCo plane geom for ``a x + b y + c z + d = 0``: its point (3,)
+    nearest the origin and the quaternion (w, x, y, z) turning +z onto ``(a, b, c)``."""
+    a, b, c, d = (float(v) for v in plane)
+    n = np.array([a, b, c])
+    norm = float(np.linalg.norm(n))
+    n_hat = n / norm
+    point = -d / norm * n_hat
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, n_hat)
+    sin, cos = float(np.linalg.norm(axis)), float(np.dot(z, n_hat))
+    if sin < 1e-12:
+        quat = np.array([1.0, 0, 0, 0]) if cos > 0 else np.array([0.0, 1.0, 0, 0])
+    else:
+        half = 0.5 * math.atan2(sin, cos)
+        quat = np.concatenate([[math.cos(half)], math.sin(half) * axis / sin])
+    return point, quat
 
 
 def object_inertia(obj, mass: float) -> tuple[np.ndarray, np.ndarray]:
@@ -190,19 +209,7 @@ def scene_xml(
     lines += ["  </asset>", "  <worldbody>"]
     if planes is not None:
         for i, (a, b, c, d) in enumerate(np.asarray(planes, float).reshape(-1, 4)):
-            n = np.array([a, b, c])
-            norm = float(np.linalg.norm(n))
-            n_hat = n / norm
-            point = -d / norm * n_hat
-            # rotation taking z to n_hat
-            z = np.array([0.0, 0.0, 1.0])
-            axis = np.cross(z, n_hat)
-            sin, cos = float(np.linalg.norm(axis)), float(np.dot(z, n_hat))
-            if sin < 1e-12:
-                quat = np.array([1.0, 0, 0, 0]) if cos > 0 else np.array([0.0, 1.0, 0, 0])
-            else:
-                half = 0.5 * math.atan2(sin, cos)
-                quat = np.concatenate([[math.cos(half)], math.sin(half) * axis / sin])
+            point, quat = plane_frame((a, b, c, d))
             lines.append(f'    <geom name="support{i}" class="support" type="plane" pos="{_vec(point)}" '
                          f'quat="{_vec(quat)}" size="0 0 1"/>')
     lines += _hand_xml(hand, np.asarray(wrist_pose, float))

@@ -4,7 +4,7 @@ Protocol (:func:`simulate_grasp`)
 ---------------------------------
 1. Build the scene (:mod:`grasp_apso.simulation.mjcf`): the palm welded at the grasp pose,
    the fingers at the pre-grasp posture, the object a free body at its pose, gravity off,
-   the support planes as plane geoms.
+   the support planes as plane geoms (they take part in the closing only).
 2. Close: the 15 position servos move linearly from the pre-grasp to the grasp posture in
    ``close_time`` (0.3 s), then to the *squeezed* posture in ``squeeze_time`` (0.1 s):
    every flexion (distal theta_i1 and proximal theta_i2, not the pivots) ``squeeze``
@@ -12,12 +12,16 @@ Protocol (:func:`simulate_grasp`)
    ``settle_time`` (0.2 s) at that target, longer (up to ``max_settle_time``, 1 s) until
    the object is at rest. The middle joints follow the distal ones
    through the eq. 1 equality constraint.
-3. Save the squeezed state. For each direction +x, -x, +y, -y, +z, -z of the planning
-   frame: restore it, apply ``object_mass * disturbance`` (10 m/s^2, so 1 N for 0.1 kg)
-   at the object's centre of mass (``xfrc_applied``) for ``duration`` (2 s), and track
-   how far the centre of mass moves and how much the object turns from the squeezed
-   state. A direction fails (and stops early) once the shift reaches ``max_shift`` (5 cm)
-   or the turn ``max_turn`` (15 degrees).
+3. Switch the support planes' contacts off (the object is in the hand, off the table:
+   no plane may carry it) and save the squeezed state. For each direction +x, -x, +y,
+   -y, +z, -z of the planning frame: restore it, apply ``object_mass * disturbance``
+   (10 m/s^2, so 1 N for 0.1 kg) at the object's centre of mass (``xfrc_applied``) for
+   ``duration`` (2 s), and track how far the centre of mass is from its *planned*
+   position and how much the object has turned from its *planned* orientation (the
+   squeezed state counts too: a grasp that shoved the object while closing is judged on
+   it, as DexGraspBench does). A direction fails (and stops early) once the shift reaches
+   ``max_shift`` (5 cm) or the turn ``max_turn`` (15 degrees). The phases are
+   :mod:`grasp_apso.simulation.phases`, shared with any hand.
 4. Held: no direction failed.
 
 Physics choices (justified in :class:`SimulationSettings`): implicit-fast integrator,
@@ -41,20 +45,12 @@ import numpy as np
 from ..errors import InputError, SimulationError
 from ..model.hand import FINGER_NAMES, HandModel
 from . import mjcf
-from .convex import ConvexSettings, convex_parts
+from .convex import convex_parts
+from .phases import DIRECTIONS, disable_contacts, disturb, planned_reference, ramp, rigid_transform, settle
 from .settings import SimulationSettings
 
 __all__ = ["SimulationSettings", "SimResult", "simulate_grasp", "build_model", "DIRECTIONS",
            "squeezed_posture"]
-
-#: Disturbance directions in the planning frame, in the order they are tried.
-DIRECTIONS: tuple[tuple[str, tuple[float, float, float]], ...] = (
-    ("+x", (1.0, 0.0, 0.0)), ("-x", (-1.0, 0.0, 0.0)),
-    ("+y", (0.0, 1.0, 0.0)), ("-y", (0.0, -1.0, 0.0)),
-    ("+z", (0.0, 0.0, 1.0)), ("-z", (0.0, 0.0, -1.0)),
-)
-
-
 
 
 
@@ -67,9 +63,10 @@ class SimResult:
     held : bool
         The object stayed in the hand in every direction.
     max_shift : float, m
-        Largest centre-of-mass displacement over the directions tried.
+        Largest distance of the centre of mass from its planned position over the
+        directions tried.
     max_turn : float, rad
-        Largest rotation over the directions tried.
+        Largest rotation from the planned orientation over the directions tried.
     per_direction : tuple of (str, float, float, bool)
         ``(direction, shift m, turn rad, held)`` for each direction tried (all six unless
         ``stop_at_first_failure``).
@@ -85,17 +82,6 @@ class SimResult:
 
 
 # ------------------------------------------------------------------------------ input
-def _transform(value, field_name: str) -> np.ndarray:
-    t = np.asarray(value, dtype=float) if value is not None else None
-    if t is None or t.shape != (4, 4) or not np.all(np.isfinite(t)):
-        raise InputError(f"{field_name}: expected a finite (4, 4) transform")
-    r = t[:3, :3]
-    if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0 \
-            or not np.allclose(t[3], [0, 0, 0, 1]):
-        raise InputError(f"{field_name}: not a rigid transform (rotation not orthonormal)")
-    return t
-
-
 def _posture(hand: HandModel, value, field_name: str) -> np.ndarray:
     q = np.asarray(value, dtype=float) if value is not None else None
     if q is None or q.ndim != 1 or q.shape[0] not in (15, 18) or not np.all(np.isfinite(q)):
@@ -149,8 +135,8 @@ def build_model(hand: HandModel, obj, pose, wrist_pose, planes=None,
     import mujoco
 
     settings = settings or SimulationSettings()
-    pose = _transform(pose, "pose")
-    wrist_pose = _transform(wrist_pose, "wrist_pose")
+    pose = rigid_transform(pose, "pose")
+    wrist_pose = rigid_transform(wrist_pose, "wrist_pose")
     planes = _planes(planes)
     parts = convex_parts(obj, settings.decomposition)
     com, inertia = mjcf.object_inertia(obj, settings.object_mass)
@@ -160,35 +146,6 @@ def build_model(hand: HandModel, obj, pose, wrist_pose, planes=None,
     except ValueError as exc:
         raise SimulationError(f"simulation: MuJoCo could not build the scene: {exc}") from exc
     return model, xml
-
-
-def _settle(model, data, settings: SimulationSettings) -> None:
-    """Hold the squeezed target ``settle_time``, then on until the object rests (speed
-    below ``rest_speed`` m/s and ``rest_spin`` rad/s) or ``max_settle_time`` has passed."""
-    import mujoco
-
-    dt = settings.timestep
-    body = model.body(mjcf.OBJECT_BODY).id
-    adr = model.jnt_dofadr[model.body_jntadr[body]]
-    n_min = int(round(settings.settle_time / dt))
-    if n_min:
-        mujoco.mj_step(model, data, nstep=n_min)
-    n_chunk = max(1, int(round(settings.check_every / dt)))
-    n_more = int(round(max(0.0, settings.max_settle_time - settings.settle_time) / dt))
-    done = 0
-    while done < n_more:
-        v = data.qvel[adr:adr + 6]
-        if np.linalg.norm(v[:3]) < settings.rest_speed and np.linalg.norm(v[3:]) < settings.rest_spin:
-            break
-        steps = min(n_chunk, n_more - done)
-        mujoco.mj_step(model, data, nstep=steps)
-        done += steps
-
-
-def _angle_between(q_ref: np.ndarray, q: np.ndarray) -> float:
-    """Rotation angle (rad) between two unit quaternions (w, x, y, z)."""
-    dot = abs(float(np.dot(q_ref, q)))
-    return 2.0 * math.acos(min(1.0, dot))
 
 
 def simulate_grasp(
@@ -256,58 +213,20 @@ def simulate_grasp(
     data.ctrl[:] = pre
     mujoco.mj_forward(model, data)
 
-    dt = settings.timestep
     squeezed = squeezed_posture(hand, grasp, settings.squeeze)
+    body = model.body(mjcf.OBJECT_BODY).id
     try:
-        for start, end, duration in ((pre, grasp, settings.close_time), (grasp, squeezed, settings.squeeze_time)):
-            n = int(round(duration / dt))
-            chunks = max(1, min(n, 15))
-            done = 0
-            for c in range(1, chunks + 1):
-                steps = int(round(n * c / chunks)) - done
-                data.ctrl[:] = start + (end - start) * (c / chunks)
-                if steps > 0:
-                    mujoco.mj_step(model, data, nstep=steps)
-                done += steps
+        ramp(model, data, ((pre, grasp, settings.close_time), (grasp, squeezed, settings.squeeze_time)),
+             settings.timestep)
         data.ctrl[:] = squeezed
-        _settle(model, data, settings)
+        settle(model, data, settings, body)
     except mujoco.FatalError as exc:  # pragma: no cover - unstable physics
         raise SimulationError(f"simulation: MuJoCo failed while closing the hand: {exc}") from exc
 
-    body = model.body(mjcf.OBJECT_BODY).id
-    spec = mujoco.mjtState.mjSTATE_INTEGRATION
-    saved = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, saved, spec)
-    ref_pos = data.xipos[body].copy()
-    ref_quat = data.xquat[body].copy()
-    force = settings.object_mass * settings.disturbance
-    n_total = int(round(settings.duration / dt))
-    n_chunk = max(1, int(round(settings.check_every / dt)))
-
-    per_direction: list[tuple[str, float, float, bool]] = []
-    for name, direction in DIRECTIONS:
-        mujoco.mj_setState(model, data, saved, spec)
-        data.xfrc_applied[:] = 0.0
-        data.xfrc_applied[body, :3] = force * np.asarray(direction)
-        shift = turn = 0.0
-        held = True
-        done = 0
-        try:
-            while done < n_total:
-                steps = min(n_chunk, n_total - done)
-                mujoco.mj_step(model, data, nstep=steps)
-                done += steps
-                shift = max(shift, float(np.linalg.norm(data.xipos[body] - ref_pos)))
-                turn = max(turn, _angle_between(ref_quat, data.xquat[body]))
-                if shift >= settings.max_shift or turn >= settings.max_turn \
-                        or not np.all(np.isfinite(data.qpos)):
-                    held = False
-                    break
-        except mujoco.FatalError as exc:  # pragma: no cover
-            raise SimulationError(f"simulation: MuJoCo failed in direction {name}: {exc}") from exc
-        per_direction.append((name, shift, turn, held))
-        if not held and stop_at_first_failure:
-            break
+    # The planes carried the object during the closing only.
+    disable_contacts(model, [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE])
+    ref_pos, ref_quat = planned_reference(rigid_transform(pose, "pose"), obj.center_of_mass)
+    per_direction = disturb(model, data, body, settings, ref_pos, ref_quat, stop_at_first_failure)
     return SimResult(
         held=all(h for *_, h in per_direction) and len(per_direction) == len(DIRECTIONS),
         max_shift=max(s for _, s, _, _ in per_direction),

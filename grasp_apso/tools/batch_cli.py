@@ -59,7 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="base random seed (default 0)")
     p.add_argument("--table", action="store_true",
                    help="a support plane under every object (a manifest's table column overrides it)")
-    p.add_argument("--hand", metavar="FILE", default=None, help="hand description YAML (default: shipped hand)")
+    p.add_argument("--hand", metavar="FILE", default=None,
+                   help="the hand to plan with: a URDF (.urdf), MJCF (.xml) or the project's YAML (.yaml) "
+                        "description (default: the shipped paper hand); rows carry its hand_name and hand_hash")
+    p.add_argument("--hand-config", metavar="FILE", default=None,
+                   help="YAML overriding what is derived from the --hand description")
     p.add_argument("--retry-failed", action="store_true",
                    help="plan again objects whose earlier failure was deterministic (bad mesh ...)")
     p.add_argument("--flush-seconds", type=float, default=5.0, metavar="S",
@@ -88,6 +92,7 @@ def _config(args: argparse.Namespace):
     use_ray = args.ray is not None
     return BatchConfig(
         out=args.out, options=options, seed=args.seed, table=args.table, hand_path=args.hand,
+        hand_config=args.hand_config,
         engine="ray" if use_ray else "local",
         workers=args.ray_cpus if use_ray else args.workers,
         ray_address=(args.ray or None) if use_ray else None, retry_failed=args.retry_failed,

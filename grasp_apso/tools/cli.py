@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import GraspApsoError, ObjectTooLargeError, UsageError
 from ..model import builtin as builtin_objects
 from ..model import objects
-from ..model.hand import load_hand
+from ..model.planning_hand import load_planning_hand
 from ..search.planner import GraspResult, PlanOptions, plan, warm_up
 from ..tunables import default
 from .cli_inputs import (OBSTACLE_FORMATS, algorithms, build_scene, cli_message, finite_number, load_object,
@@ -70,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog=PROG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Plan a precision (fingertip) grasp for the five-fingered hand with APSO "
+        description="Plan a precision (fingertip) grasp for a multi-fingered hand (the paper's, or any URDF / MJCF hand: --hand) with APSO "
                     "(adaptive particle swarm + guided random generation) or the simple PSO, "
                     "without ROS. Prints the hand configuration and the grasp quality and "
                     "draws the grasp and the convergence of the swarm.",
@@ -120,7 +120,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="check every candidate in the MuJoCo simulation (squeeze, then shake in six "
                             "directions): prints held / dropped, shift and turn")
     parser.add_argument("--hand", metavar="FILE", default=None,
-                        help="hand description YAML (default: the shipped paper hand)")
+                        help="the hand to plan with: a URDF (.urdf), MJCF (.xml) or the project's YAML (.yaml) "
+                             "description (default: the shipped paper hand); check a new hand with grasp_apso_hand")
+    parser.add_argument("--hand-config", metavar="FILE", default=None,
+                        help="YAML overriding what is derived from the --hand description (root link, fingers, "
+                             "thumb, closing senses, palm normal, pads)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help=f"folder for the pictures (default ./{DEFAULT_OUT}/)")
     parser.add_argument("--no-plots", action="store_true", help="do not draw pictures")
@@ -150,6 +154,16 @@ def _scene_text(scene, args: argparse.Namespace) -> str:
         dims = " x ".join(f"{d * 1000:.0f}" for d in o.dimensions)
         parts.append(f"{o.name.lower()} at ({centre}) mm, {dims} mm")
     return "; ".join(parts) + f"; clearance {args.clearance * 1000:g} mm"
+
+
+def _hand_text(planning_hand) -> str:
+    hand = planning_hand.hand
+    where = planning_hand.path or "shipped"
+    if not hasattr(hand, "actuated_joints"):
+        return f"{hand.name} ({where}): the paper's five-fingered hand, 18 joints"
+    fingers = ", ".join(f.name for f in hand.fingers)
+    return (f"{hand.name} ({where}): {len(hand.fingers)} fingers ({fingers}), "
+            f"{len(hand.actuated_joints)} actuated joints, root link {hand.root_link}")
 
 
 def _plan_all(args, algorithms_, obj, hand, scene, seed, out, err, show) -> dict[str, GraspResult]:
@@ -246,7 +260,8 @@ def _run(args: argparse.Namespace, out, err) -> int:
     algorithms_ = algorithms(args.algorithm)
     for alg in algorithms_:
         _options(args, alg)  # bad options fail before anything is loaded
-    hand = load_hand(args.hand)
+    planning_hand = load_planning_hand(args.hand, args.hand_config)
+    hand = planning_hand.hand
     obj, source = load_object(args)
     scene = build_scene(obj, args.table, args.obstacle)
     if scene is not None:
@@ -269,6 +284,7 @@ def _run(args: argparse.Namespace, out, err) -> int:
     if show:
         ext = " x ".join(f"{e * 1000:.0f}" for e in obj.principal_extents)
         print(f"{PROG}: precision grasp planning (no ROS)", file=out)
+        print(f"  hand       {_hand_text(planning_hand)}", file=out)
         print(f"  object     {obj.name} ({source}): {len(obj.mesh.faces)} triangles, {ext} mm, "
               f"shape class {shape.name}", file=out)
         if scene is not None:

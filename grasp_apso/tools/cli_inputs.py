@@ -45,7 +45,8 @@ _OPTION_OF_FIELD = {
     "iterations": "--iterations", "friction": "--friction", "algorithm": "--algorithm",
     "clearance": "--clearance", "approach_distance": "--approach-distance", "max_grasps": "--grasps",
     "simulate": "--simulate", "support_planes": "--table", "obstacle_poses": "--obstacle",
-    "obstacles": "--obstacle", "hand description": "--hand",
+    "obstacles": "--obstacle", "hand description": "--hand", "hand_description": "--hand",
+    "hand_config": "--hand-config",
 }
 #: Fields naming the object itself, whichever option gave it (``--object`` or ``--mesh``).
 _OBJECT_FIELDS = ("object", "object_pose")
@@ -105,6 +106,9 @@ def cli_message(exc: BaseException, object_option: str = "--object") -> str:
         return _option_label(*indexed.groups()) + ":" + rest
     if field in _OPTION_OF_FIELD:
         return _OPTION_OF_FIELD[field] + ":" + rest
+    base, dot, key = field.partition(".")  # hand_config.thumb: ... -> --hand-config: thumb: ...
+    if dot and base in _OPTION_OF_FIELD:
+        return f"{_OPTION_OF_FIELD[base]}: {key}:" + rest
     return head + ":" + rest
 
 

@@ -68,9 +68,30 @@ def scene_to_dict(scene) -> dict[str, Any] | None:
     }
 
 
+def _fcl_dict(result: GraspResult) -> dict[str, Any] | None:
+    """The python-fcl verification: the paper hand's per finger link, a general hand's per
+    link (:class:`grasp_apso.geometry.any_hand_fcl.AnyHandReport`); None when it did not run."""
+    fcl = result.fcl
+    if fcl is None:
+        return None
+    if hasattr(fcl, "links"):
+        return {"legal": bool(fcl.legal), "links": list(fcl.links), "link_distance": _floats(fcl.link_distance),
+                "touching": [bool(t) for t in fcl.touching], "deepest_link": fcl.deepest_link,
+                "deepest_penetration": float(fcl.deepest_penetration),
+                "colliding_link_pairs": [list(p) for p in fcl.link_pairs_colliding],
+                "colliding_finger_pairs": [list(p) for p in fcl.finger_pairs_colliding]}
+    return {
+        "legal": bool(fcl.legal),
+        "penetrating_links": [f"{FINGER_NAMES[f]}_{LINK_NAMES[FINGER_NAMES[f]][k]}"
+                              for f, k in np.argwhere(np.asarray(fcl.link_penetrates))],
+        "colliding_finger_pairs": [list(p) for p in fcl.finger_pairs_colliding],
+        "link_distance": _floats(fcl.link_distance),
+        "touching_links": touching_links(result),
+    }
+
+
 def result_to_dict(result: GraspResult, friction: float | None = None) -> dict[str, Any]:
     """JSON-ready summary of a plan: the best grasp's fields, every candidate, the history."""
-    fcl = result.fcl
     wrist = _pose(result.wrist_pose)
     return {
         "algorithm": result.algorithm,
@@ -89,14 +110,9 @@ def result_to_dict(result: GraspResult, friction: float | None = None) -> dict[s
                      for c in result.contacts],
         "n_contacts": len(result.contacts),
         "max_penetration": float(result.max_penetration),
-        "fcl": {
-            "legal": bool(fcl.legal),
-            "penetrating_links": [f"{FINGER_NAMES[f]}_{LINK_NAMES[FINGER_NAMES[f]][k]}"
-                                  for f, k in np.argwhere(np.asarray(fcl.link_penetrates))],
-            "colliding_finger_pairs": [list(p) for p in fcl.finger_pairs_colliding],
-            "link_distance": _floats(fcl.link_distance),
-            "touching_links": touching_links(result),
-        },
+        "fcl": _fcl_dict(result),
+        "hand_name": str(result.hand_name),
+        "hand_hash": str(result.hand_hash),
         "candidates": [candidate_to_dict(c) for c in result.candidates],
         "candidates_message": result.candidates_message,
         "shape_class": result.shape_class,

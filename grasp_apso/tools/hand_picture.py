@@ -25,7 +25,6 @@ with their largest stray. Built without pyplot (Agg canvas), like
 from __future__ import annotations
 
 import os
-import re
 from typing import Any
 
 import numpy as np
@@ -36,18 +35,14 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from ..presentation.palette import CONTACT_COLOR, FINGER_COLORS, PALM_COLOR, rgb
+from ..presentation.hand_geometry import EXTRA_FINGER_COLORS, finger_color
+from ..presentation.palette import CONTACT_COLOR, PALM_COLOR, rgb
 from .view3d import (decimate_for_drawing, framing, nice_length, save, scale_bar_and_triad, screen_axes,
                      shaded_colors, transform, view_angles, zoom_to_content)
 
 __all__ = ["draw_hand", "finger_color", "EXTRA_FINGER_COLORS"]
 
 MM = 1000.0
-#: Colours of fingers whose names the palette does not know (Okabe-Ito, then others).
-EXTRA_FINGER_COLORS = ("#56B4E9", "#F0E442", "#8C564B", "#17BECF", "#B07AA1")
-#: Other names of the palette's fingers (the Shadow hand's ff, mf, rf, lf, th; pinky).
-_ALIASES = {"ff": "index", "first": "index", "mf": "middle", "rf": "ring", "lf": "little", "pinky": "little",
-            "th": "thumb"}
 GEOMETRY_COLOR = "#B4B4B4"
 #: Triangles drawn per link's exact geometry at most (decimated beyond).
 _LINK_TRIANGLES = 600
@@ -56,19 +51,6 @@ _SPHERE_LEVEL_UNDER = ((600, 1), (10**9, 0))
 _CLOSED_FRACTION = 0.8
 _SPHERE_ALPHA = 0.2
 _GEOMETRY_ALPHA = 0.2
-
-
-def finger_color(name: str, index: int) -> str:
-    """The palette's colour for a finger called like the paper's (index, thumb, ...),
-    otherwise one of ``EXTRA_FINGER_COLORS`` by the finger's index."""
-    key = name.lower()
-    for known, color in FINGER_COLORS.items():
-        if known in key:
-            return color
-    for token in re.split(r"[^a-z]+", key):
-        if token in _ALIASES:
-            return FINGER_COLORS[_ALIASES[token]]
-    return EXTRA_FINGER_COLORS[index % len(EXTRA_FINGER_COLORS)]
 
 
 def _default_posture(hand: Any, fraction: float) -> np.ndarray:

@@ -45,8 +45,11 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ..model.hand import FINGER_NAMES, HandModel, load_hand
+from ..model.planning_hand import is_general_hand
+from ..presentation.hand_geometry import finger_color
 from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FINGER_COLORS, OBJECT_COLOR, OBSTACLE_COLOR,
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR)
+from .any_hand_drawing import draw_any_hand, finger_legend, hand_axes, hand_mesh_mm, pad_radius_mm
 from .scene_drawing import (MM, draw_approach, draw_contacts, draw_hand, draw_object, draw_obstacles, draw_table,
                             palm_corners, table_patch)
 from .view3d import (MAX_DRAWN_TRIANGLES, decimate_for_drawing, framing, nice_length, save, scale_bar_and_triad,
@@ -132,12 +135,34 @@ class _Grasp:
     approach_mm: float
     palm_axes: np.ndarray
     touching: np.ndarray | None = None
+    #: A general hand: link -> (T, 3, 3) triangles, mm, at the grasp and the pre-grasp.
+    hand_tris: dict | None = None
+    pre_hand_tris: dict | None = None
 
     def points(self) -> np.ndarray:
         pts = [self.joints.reshape(-1, 3), self.palm]
         if self.pre_joints is not None:
             pts += [self.pre_joints.reshape(-1, 3), self.pre_palm]
+        for tris in (self.hand_tris or {}, self.pre_hand_tris or {}):
+            pts += [t.reshape(-1, 3) for t in tris.values()]
         return np.vstack(pts)
+
+
+def _general_grasp_of(item: Any, hand: Any, candidate: Any) -> _Grasp:
+    """A :class:`_Grasp` of a general hand: its own collision geometry at the grasp
+    (``joint_positions`` at ``wrist_pose``, the root link) and the pre-grasp."""
+    wrist = np.asarray(item.wrist_pose, float)
+    q = np.asarray(item.joint_positions, float)
+    empty = np.zeros((0, 3))
+    pre_tris = approach = None
+    approach_mm = 0.0
+    if candidate is not None and float(candidate.approach_distance) > 0:
+        pre_pose = np.asarray(candidate.pre_grasp_pose, float)
+        pre_tris = hand_mesh_mm(hand, np.asarray(candidate.pre_grasp_positions, float), pre_pose)
+        approach = (pre_pose[:3, 3] * MM, wrist[:3, 3] * MM)
+        approach_mm = float(candidate.approach_distance) * MM
+    return _Grasp(np.zeros((0, 4, 3)), empty, tuple(item.contacts), None, None, approach, approach_mm,
+                  hand_axes(hand, wrist, q), None, hand_mesh_mm(hand, q, wrist), pre_tris)
 
 
 def _grasp_of(item: Any, hand: HandModel, touching: np.ndarray | None = None, candidate: Any = None) -> _Grasp:
@@ -146,6 +171,8 @@ def _grasp_of(item: Any, hand: HandModel, touching: np.ndarray | None = None, ca
     wrist = np.asarray(item.wrist_pose, float)
     candidate = candidate if candidate is not None else (
         item if hasattr(item, "pre_grasp_joints") else next(iter(getattr(item, "candidates", ())), None))
+    if is_general_hand(hand):
+        return _general_grasp_of(item, hand, candidate)
     pre_joints = pre_palm = approach = None
     approach_mm = 0.0
     if candidate is not None and float(candidate.approach_distance) > 0:
@@ -181,7 +208,7 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
     ax.view_init(elev=elev, azim=azim, roll=roll)
     ax.set_proj_type("ortho")
     content = np.vstack([tris.reshape(-1, 3), grasp.points()])
-    pad = hand.pad_radius * MM
+    pad = pad_radius_mm(hand) if grasp.hand_tris is not None else hand.pad_radius * MM
     margin = max(60.0, 0.6 * float(np.ptp(content, axis=0).max()))  # obstacles are clipped to this
     roi_lo, roi_hi = content.min(axis=0) - margin, content.max(axis=0) + margin
     pts = [content]
@@ -192,10 +219,17 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
             pts.append(corners)
         pts.append(draw_obstacles(ax, scene, roi_lo, roi_hi))
     draw_object(ax, tris, com, grasp.palm_axes @ np.array([0.3, 0.5, 1.0]))
-    if grasp.pre_joints is not None:
-        draw_hand(ax, grasp.pre_joints, grasp.pre_palm, hand, faint=True)
-    tubes = draw_hand(ax, grasp.joints, grasp.palm, hand, touching=grasp.touching)
-    draw_contacts(ax, grasp.contacts)
+    tubes: list = []
+    if grasp.hand_tris is not None:
+        if grasp.pre_hand_tris is not None:
+            draw_any_hand(ax, hand, grasp.pre_hand_tris, faint=True)
+        draw_any_hand(ax, hand, grasp.hand_tris)
+    else:
+        if grasp.pre_joints is not None:
+            draw_hand(ax, grasp.pre_joints, grasp.pre_palm, hand, faint=True)
+        tubes = draw_hand(ax, grasp.joints, grasp.palm, hand, touching=grasp.touching)
+    draw_contacts(ax, grasp.contacts, None if grasp.hand_tris is None else
+                  {f.name: finger_color(f.name, i) for i, f in enumerate(hand.fingers)})
     if grasp.approach is not None:
         draw_approach(ax, *grasp.approach, label=f"approach {grasp.approach_mm:.0f} mm" if label else None)
     pts = np.vstack(pts)
@@ -214,13 +248,17 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
     return ax, view_pts, right_s, tubes
 
 
-def _legend(fig: Figure, grasp: _Grasp, scene: Any, touching: bool, ncol: int) -> None:
-    handles = [Line2D([], [], color=FINGER_COLORS[n], linewidth=5, label=n) for n in FINGER_NAMES]
+def _legend(fig: Figure, grasp: _Grasp, scene: Any, touching: bool, ncol: int, hand: Any = None) -> None:
+    general = grasp.hand_tris is not None
+    handles = finger_legend(hand) if general else [
+        Line2D([], [], color=FINGER_COLORS[n], linewidth=5, label=n) for n in FINGER_NAMES]
     handles += [
         Line2D([], [], marker="o", linestyle="-", color=CONTACT_COLOR, markerfacecolor="white",
                markeredgewidth=1.5, label="contact + surface normal"),
         Line2D([], [], marker="+", linestyle="none", color=COM_COLOR, markersize=9, label="centre of mass"),
         Patch(facecolor=OBJECT_COLOR, alpha=0.5, label="object"),
+    ]
+    handles += [Patch(facecolor=PALM_COLOR, alpha=0.6, label="palm and links no finger moves")] if general else [
         Patch(facecolor=PALM_COLOR, edgecolor="#8A6A4A", alpha=0.6, label="palm (face toward object)"),
         Line2D([], [], color="0.5", alpha=0.3, linewidth=9, solid_capstyle="round", label="finger volume (to scale)"),
     ]
@@ -268,7 +306,9 @@ def plot_grasp(
     title : str, optional
         Figure title; default :func:`grasp_title`.
     hand : HandModel, optional
-        The hand planned with (palm box, link and pad radii); the shipped hand when None.
+        The hand planned with (palm box, link and pad radii); the shipped hand when None. A
+        general hand (:class:`grasp_apso.model.hands.HandModel`) is drawn from its own
+        collision geometry (:mod:`grasp_apso.tools.any_hand_drawing`).
     views : sequence of "side" | "fingertips" | "palm"
         One panel per view, side by side.
     dpi : int
@@ -285,7 +325,7 @@ def plot_grasp(
     if unknown or not views:
         raise ValueError(f"views: expected some of {sorted(_VIEW_LABELS)}, got {list(views)!r}")
     tris, com = _object_geometry(obj, _pose_of(result, pose))
-    touching = result.touching_links()
+    touching = np.zeros((0, 3), dtype=bool) if is_general_hand(hand) else result.touching_links()
     grasp = _grasp_of(result, hand, touching)
     table = scene is not None and len(scene.planes) > 0
     fig = Figure(figsize=(5.9 * len(views), 6.4))
@@ -297,7 +337,7 @@ def plot_grasp(
         ax = fig.add_subplot(1, len(views), k + 1, projection="3d", computed_zorder=False)
         label = _VIEW_LABELS[view] + ("; table level" if table and view != "palm" else "")
         panels.append(_draw_panel(ax, view, grasp, tris, com, hand, scene, bar_mm, label))
-    _legend(fig, grasp, scene, bool(touching.any()), ncol=6)
+    _legend(fig, grasp, scene, bool(touching.any()), ncol=6, hand=hand)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.11, top=0.88, wspace=0.0)
     zoom_to_content(fig, panels)
     return save(fig, path, dpi)
@@ -343,7 +383,7 @@ def plot_candidates(
         ax = fig.add_subplot(rows, cols, k + 1, projection="3d", computed_zorder=False)
         panels.append(_draw_panel(ax, view, grasp, tris, com, hand, scene, bar_mm, None))
         ax.set_title(candidate_title(cand), fontsize=9)
-    _legend(fig, grasps[0], scene, False, ncol=7)
+    _legend(fig, grasps[0], scene, False, ncol=7, hand=hand)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.8 / height, top=1 - 0.8 / height, wspace=0.0, hspace=0.15)
     zoom_to_content(fig, panels)
     return save(fig, path, dpi)

@@ -92,12 +92,14 @@ def draw_hand(ax, joints: np.ndarray, palm: np.ndarray, hand: HandModel, faint: 
     return tubes
 
 
-def draw_contacts(ax, contacts: Sequence[Any]) -> None:
-    """Contacts (planning frame, m) as rings in the finger's colour with outward normals."""
+def draw_contacts(ax, contacts: Sequence[Any], finger_colors: dict[str, str] | None = None) -> None:
+    """Contacts (planning frame, m) as rings in the finger's colour with outward normals
+    (``finger_colors``: finger name -> colour; default the paper hand's palette)."""
+    colors = FINGER_COLORS if finger_colors is None else finger_colors
     for c in contacts:
         p = np.asarray(c.position, float) * MM
         n = np.asarray(c.normal, float)
-        ax.scatter(*p, s=55, marker="o", color=FINGER_COLORS.get(c.finger, "k"), edgecolors=CONTACT_COLOR,
+        ax.scatter(*p, s=55, marker="o", color=colors.get(c.finger, "k"), edgecolors=CONTACT_COLOR,
                    linewidths=1.5, zorder=6, depthshade=False)
         ax.quiver(*p, *(n * _NORMAL_ARROW_MM), color=CONTACT_COLOR, linewidth=1.4, arrow_length_ratio=0.35,
                   zorder=6)

@@ -11,12 +11,10 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..presentation.hand_geometry import MAX_DRAWN_TRIANGLES, decimate_for_drawing
+
 __all__ = ["MAX_DRAWN_TRIANGLES", "save", "decimate_for_drawing", "view_angles", "screen_axes", "framing",
            "nice_length", "scale_bar_and_triad", "zoom_to_content", "shaded_colors", "transform"]
-
-#: Meshes with more triangles are simplified (vertex clustering) before drawing.
-MAX_DRAWN_TRIANGLES = 3000
-
 
 def save(fig: Figure, path: str | os.PathLike, dpi: int) -> str:
     path = os.fspath(path)
@@ -27,55 +25,6 @@ def save(fig: Figure, path: str | os.PathLike, dpi: int) -> str:
     return path
 
 
-def decimate_for_drawing(
-    vertices: np.ndarray, faces: np.ndarray, max_triangles: int = MAX_DRAWN_TRIANGLES
-) -> tuple[np.ndarray, np.ndarray]:
-    """Simplify a triangle mesh for drawing by vertex clustering.
-
-    Vertices are snapped to a grid whose cell grows until at most ``max_triangles``
-    non-degenerate triangles remain; each cell's vertices merge into their mean. Only for
-    pictures: the result need not be closed or manifold.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float
-    faces : (T, 3) int
-    max_triangles : int
-
-    Returns
-    -------
-    vertices : (V', 3) float
-    faces : (T', 3) int, T' <= max_triangles (unless the coarsest grid still has more)
-    """
-    vertices = np.asarray(vertices, dtype=float)
-    faces = np.asarray(faces, dtype=np.int64)
-    if len(faces) <= max_triangles:
-        return vertices, faces
-    lo = vertices.min(axis=0)
-    size = float(np.ptp(vertices, axis=0).max()) or 1.0
-    cells = int(math.sqrt(max_triangles / 2.0)) * 2
-    best = (vertices, faces)
-    while cells >= 4:
-        key = np.floor((vertices - lo) / (size / cells)).astype(np.int64)
-        _, cluster, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-        cluster = cluster.reshape(-1)
-        merged = np.zeros((len(counts), 3))
-        np.add.at(merged, cluster, vertices)
-        merged /= counts[:, None]
-        new_faces = cluster[faces]
-        keep = (
-            (new_faces[:, 0] != new_faces[:, 1])
-            & (new_faces[:, 1] != new_faces[:, 2])
-            & (new_faces[:, 0] != new_faces[:, 2])
-        )
-        new_faces = new_faces[keep]
-        first = np.unique(np.sort(new_faces, axis=1), axis=0, return_index=True)[1]
-        new_faces = new_faces[np.sort(first)]  # drop duplicates, keep the winding
-        best = (merged, new_faces)
-        if len(new_faces) <= max_triangles:
-            break
-        cells = int(cells * 0.8)
-    return best
 
 
 def view_angles(direction: np.ndarray, up: np.ndarray) -> tuple[float, float, float]:

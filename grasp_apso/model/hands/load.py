@@ -85,8 +85,8 @@ def load_hand(path: str | Path | None = None, config: str | Path | dict | None =
     cfg = read_config(config)
     source_hash = hashlib.sha256(content + b"\0" + cfg.canonical.encode()).hexdigest()
     key = (source_hash, str(path.resolve().parent), bool(spheres), limit)
-    return cached("hand_model", key, lambda: _build(path, kind, content, cfg, source_hash, limit, spheres),
-                  nbytes=_hand_bytes)
+    return cached("hand_model", key, lambda: replace(_build(path, kind, content, cfg, source_hash, limit, spheres),
+                                                     source_path=str(path.resolve())), nbytes=_hand_bytes)
 
 
 def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: str, limit: int,

@@ -28,7 +28,7 @@ from .description import RawHand, RawJoint, RawLink, rigid
 from .geometry import LinkGeometry
 from .model import Coupling
 
-__all__ = ["read_mjcf"]
+__all__ = ["read_mjcf", "open_spec"]
 
 #: A limited fixed tendon couples its two joints when its range is at most this
 #: fraction of the length span its joints' ranges allow.
@@ -42,7 +42,14 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _compile(path: Path, notes: list[str], max_mesh_bytes: int):
+def open_spec(path: Path, notes: list[str], max_mesh_bytes: int | None = None):
+    """The file's ``mujoco.MjSpec`` with its visual-only meshes whose files are missing
+    removed (noted in ``notes``); a missing collision mesh, or one over ``max_mesh_bytes``
+    (default: the tunable ``max_hand_file_bytes``), is an error naming it."""
+    if max_mesh_bytes is None:
+        from ... import tunables
+
+        max_mesh_bytes = int(tunables.default("max_hand_file_bytes"))
     import mujoco
 
     try:
@@ -69,6 +76,11 @@ def _compile(path: Path, notes: list[str], max_mesh_bytes: int):
             spec.delete(g)
         spec.delete(mesh)
         notes.append(f"mesh {mesh.name}: file {file.name} missing, visual only: ignored")
+    return spec
+
+
+def _compile(path: Path, notes: list[str], max_mesh_bytes: int):
+    spec = open_spec(path, notes, max_mesh_bytes)
     try:
         return spec.compile()
     except Exception as exc:

@@ -123,6 +123,9 @@ class HandModel:
         What the loader decided on its own (defaults, ignored elements).
     source_hash : str
         sha256 of the description file's content and the config.
+    source_path : str
+        The description file it was loaded from (absolute; "" when built from data):
+        the simulation compiles the hand from it.
     """
 
     name: str
@@ -146,6 +149,7 @@ class HandModel:
     full_matrix: np.ndarray = field(repr=False, default=None)
     full_offset: np.ndarray = field(repr=False, default=None)
     root_inverse: np.ndarray = field(repr=False, default=None)
+    source_path: str = ""
 
     # ------------------------------------------------------------------ kinematics
     @property

@@ -1,0 +1,351 @@
+"""Compiled inner loops of the general hand's decoding (numba, cached on disk, GIL released).
+
+Batched over particles and fingers, for arbitrary chains, from the flat tables of
+:mod:`.any_hand_tables` (passed as the tuple :func:`kin`): forward kinematics of a
+finger's links (revolute and prismatic motions, couplings through ``full = A q + b``),
+the clearance of its collision spheres from the object's signed-distance grid (groups of
+spheres whose bounding sphere is farther than ``cutoff`` are skipped: their clearance is
+then a lower bound above ``cutoff``), the closing sweep (GraspIt!'s auto-grasp: a coarse
+sweep of the common closing parameter ``s`` then bisection), the overlap of spheres of
+different fingers and the palm's clearance.
+
+Conventions as :mod:`grasp_apso.geometry.kernels`: float64 C-contiguous arrays, inputs
+validated by the caller, outputs written in place.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .kernels import _grid_distance
+
+_jit = numba.njit(cache=True, nogil=True)
+
+# indices into the kinematic tuple (see kin())
+_A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
+_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS = range(12, 30)
+
+
+def kin(t) -> tuple:
+    """The kinematic tuple the kernels take, from a :class:`.any_hand_tables.HandTables`."""
+    return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
+            t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
+            t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,
+            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack)
+
+
+@_jit
+def _compose(a, b, out):
+    """out = a @ b for 4x4 rigid transforms (out distinct from a and b)."""
+    for i in range(3):
+        for j in range(4):
+            v = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+            if j == 3:
+                v += a[i, 3]
+            out[i, j] = v
+    out[3, 0] = 0.0
+    out[3, 1] = 0.0
+    out[3, 2] = 0.0
+    out[3, 3] = 1.0
+
+
+@_jit
+def _motion(kind, axis, anchor, value, out):
+    """The local transform of one joint motion (4, 4) by ``value`` (rad or m)."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = 1.0 if i == j else 0.0
+    if kind == 1:
+        for i in range(3):
+            out[i, 3] = value * axis[i]
+        return
+    x, y, z = axis[0], axis[1], axis[2]
+    s, c = math.sin(value), math.cos(value)
+    t = 1.0 - c
+    out[0, 0] = c + x * x * t
+    out[0, 1] = x * y * t - z * s
+    out[0, 2] = x * z * t + y * s
+    out[1, 0] = y * x * t + z * s
+    out[1, 1] = c + y * y * t
+    out[1, 2] = y * z * t - x * s
+    out[2, 0] = z * x * t - y * s
+    out[2, 1] = z * y * t + x * s
+    out[2, 2] = c + z * z * t
+    for i in range(3):
+        out[i, 3] = anchor[i] - (out[i, 0] * anchor[0] + out[i, 1] * anchor[1] + out[i, 2] * anchor[2])
+
+
+@_jit
+def finger_poses(q, f, K, poses, tmp, local):
+    """Poses (root frame) of finger ``f``'s links at actuated positions q (n,) -> poses (Lmax, 4, 4)."""
+    full_a, full_b = K[_A], K[_B]
+    for l in range(K[_NL][f]):
+        pl = K[_PAR][f, l]
+        if pl < 0:
+            for i in range(4):
+                for j in range(4):
+                    poses[l, i, j] = K[_PRE][f, l, i, j]
+        else:
+            _compose(poses[pl], K[_PRE][f, l], poses[l])
+        start = K[_MS][f, l]
+        for m in range(start, start + K[_MC][f, l]):
+            k = K[_MI][m]
+            value = full_b[k] - K[_MR][m]
+            for j in range(q.shape[0]):
+                value += full_a[k, j] * q[j]
+            _motion(K[_MK][m], K[_MAX][m], K[_MAN][m], value, local)
+            _compose(poses[l], local, tmp)
+            for i in range(4):
+                for j in range(4):
+                    poses[l, i, j] = tmp[i, j]
+
+
+@_jit
+def _point(rot, trans, pose, p, out):
+    """out = rot @ (pose @ p) + trans (object frame)."""
+    for i in range(3):
+        out[i] = pose[i, 0] * p[0] + pose[i, 1] * p[1] + pose[i, 2] * p[2] + pose[i, 3]
+    x, y, z = out[0], out[1], out[2]
+    for i in range(3):
+        out[i] = rot[i, 0] * x + rot[i, 1] * y + rot[i, 2] * z + trans[i]
+
+
+@_jit
+def _groups_clearance(values, origin, spacing, rot, trans, pose, g0, g1, K, cutoff, c):
+    """Least clearance (sdf - radius, m) of the spheres of groups g0..g1-1 of a link at ``pose``."""
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    inv = 1.0 / spacing
+    best = np.inf
+    for g in range(g0, g1):
+        _point(rot, trans, pose, K[_GRCEN][g], c)
+        d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_GRR][g]
+        if d > cutoff:
+            best = min(best, d)
+            continue
+        s0 = K[_GRS][g]
+        for s in range(s0, s0 + K[_GRC][g]):
+            _point(rot, trans, pose, K[_SC][s], c)
+            d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_SR][s]
+            best = min(best, d)
+    return best
+
+
+@_jit
+def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, link_out, c, moving_only=False):
+    """Least clearance over finger f's links (posed), per link into link_out (Lmax,);
+    ``moving_only``: only the links the closing moves (the others keep link_out)."""
+    best = np.inf
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    for l in range(K[_NL][f]):
+        if moving_only and K[_MOV][f, l] == 0:
+            continue
+        if K[_LR][f, l] < 0.0:
+            link_out[l] = np.inf
+            continue
+        _point(rot, trans, poses[l], K[_LC][f, l], c)
+        d = _grid_distance(values, ox, oy, oz, 1.0 / spacing, spacing, c[0], c[1], c[2]) - K[_LR][f, l]
+        if d > cutoff:
+            link_out[l] = d
+            best = min(best, d)
+            continue
+        g0 = K[_GS][f, l]
+        d = _groups_clearance(values, origin, spacing, rot, trans, poses[l], g0, g0 + K[_GC][f, l], K, cutoff, c)
+        if l == K[_PADL][f]:
+            # The pad link's cover may enter by its stray (it lies outside the exact
+            # surface); the pad sphere (the exact surface at the pad) may not.
+            d = min(d + K[_PADS][f], _pad(values, origin, spacing, rot, trans, poses, f, K, c))
+        link_out[l] = d
+        best = min(best, d)
+    return best
+
+
+@_jit
+def _set_closing(q, q0, f, K, s):
+    for k in range(K[_JC][f]):
+        target = K[_JT][f, k]
+        if not math.isnan(target):
+            j = K[_JI][f, k]
+            q[j] = q0[j] + s * (target - q0[j])
+
+
+@_jit
+def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
+    """Pad sphere's centre (object frame) into pad_pos (3,); returns its clearance (sdf -
+    pad radius, m): 0 when the pad touches the surface."""
+    _point(rot, trans, poses[K[_PADL][f]], K[_PADC][f], pad_pos)
+    return _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing,
+                          pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]
+
+
+@_jit
+def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cutoff,
+                  q_out, s_out, start_clear, stopped, link_clear, pad_pos, pad_gap):
+    """Close every finger of every particle from its pre-shape q0 (P, n).
+
+    Each joint of finger f with a closing limit moves ``q0 + s (limit - q0)``; ``s`` is the
+    first sample of ``coarse`` steps at which a sphere of the finger meets the surface
+    (clearance <= 0), refined by ``refine`` bisections to the last free ``s`` (1 when nothing
+    is met). Writes q_out (P, n) closed, s_out (P, F), start_clear (P, F) the finger's
+    clearance at its pre-shape, stopped (P, F) bool something met, link_clear (P, F, Lmax)
+    per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance.
+    """
+    n_p, n_f, lmax = q0.shape[0], K[_NL].shape[0], link_clear.shape[2]
+    poses = np.empty((lmax, 4, 4))
+    tmp = np.empty((4, 4))
+    local = np.empty((4, 4))
+    lc = np.empty(lmax)
+    c = np.empty(3)
+    q = np.empty(q0.shape[1])
+    for p in range(n_p):
+        r, t = rot[p], trans[p]
+        for j in range(q0.shape[1]):
+            q_out[p, j] = q0[p, j]
+        for f in range(n_f):
+            for j in range(q0.shape[1]):
+                q[j] = q0[p, j]
+            finger_poses(q, f, K, poses, tmp, local)
+            c0 = _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c)
+            start_clear[p, f] = c0
+            fixed = np.inf  # the links the closing does not move keep their clearance
+            for l in range(K[_NL][f]):
+                if K[_MOV][f, l] == 0:
+                    fixed = min(fixed, lc[l])
+            s = 0.0
+            met = c0 <= 0.0
+            if not met:
+                lo, hi = 0.0, -1.0
+                for k in range(1, coarse + 1):
+                    sk = k / coarse
+                    _set_closing(q, q0[p], f, K, sk)
+                    finger_poses(q, f, K, poses, tmp, local)
+                    if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c,
+                                                    True)) <= 0.0:
+                        hi = sk
+                        break
+                    lo = sk
+                if hi < 0.0:
+                    s = 1.0
+                else:
+                    met = True
+                    for _ in range(refine):
+                        mid = 0.5 * (lo + hi)
+                        _set_closing(q, q0[p], f, K, mid)
+                        finger_poses(q, f, K, poses, tmp, local)
+                        if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc,
+                                                        c, True)) <= 0.0:
+                            hi = mid
+                        else:
+                            lo = mid
+                    s = lo
+            _set_closing(q, q0[p], f, K, s)
+            finger_poses(q, f, K, poses, tmp, local)
+            _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, link_clear[p, f], c)
+            pad_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, pad_pos[p, f])
+            s_out[p, f] = s
+            stopped[p, f] = met
+            for k in range(K[_JC][f]):
+                j = K[_JI][f, k]
+                q_out[p, j] = q[j]
+
+
+@_jit
+def finger_clearances(values, origin, spacing, rot, trans, q, rows, K, cutoff, link_clear, pad_pos, pad_gap):
+    """Per-link clearance and pad of the finger rows (R, 2: particle, finger) at postures
+    q (P, n): link_clear (P, F, Lmax), pad_pos (P, F, 3), pad_gap (P, F) written for them."""
+    lmax = link_clear.shape[2]
+    poses = np.empty((lmax, 4, 4))
+    tmp = np.empty((4, 4))
+    local = np.empty((4, 4))
+    c = np.empty(3)
+    for i in range(rows.shape[0]):
+        p, f = rows[i, 0], rows[i, 1]
+        finger_poses(q[p], f, K, poses, tmp, local)
+        _finger_clearance(values, origin, spacing, rot[p], trans[p], poses, f, K, cutoff, link_clear[p, f], c)
+        pad_gap[p, f] = _pad(values, origin, spacing, rot[p], trans[p], poses, f, K, pad_pos[p, f])
+
+
+@_jit
+def link_poses(q, K, out):
+    """Every finger link's pose in the root frame: q (P, n) -> out (P, F, Lmax, 4, 4)."""
+    tmp = np.empty((4, 4))
+    local = np.empty((4, 4))
+    for p in range(q.shape[0]):
+        for f in range(K[_NL].shape[0]):
+            finger_poses(q[p], f, K, out[p, f], tmp, local)
+
+
+@_jit
+def finger_overlaps(poses, pairs, K, allowed, out):
+    """Fingers whose spheres overlap another finger's by more than ``allowed`` (m).
+
+    poses (P, F, Lmax, 4, 4) root frame; pairs (K, 4) f1, l1, f2, l2; out (P, F) bool.
+    """
+    a = np.empty(3)
+    b = np.empty(3)
+    eye = np.zeros((3, 3))
+    zero = np.zeros(3)
+    for i in range(3):
+        eye[i, i] = 1.0
+    for p in range(poses.shape[0]):
+        for f in range(out.shape[1]):
+            out[p, f] = False
+        for k in range(pairs.shape[0]):
+            f1, l1, f2, l2 = pairs[k, 0], pairs[k, 1], pairs[k, 2], pairs[k, 3]
+            if out[p, f1] and out[p, f2]:
+                continue
+            hit = False
+            p1, p2 = poses[p, f1, l1], poses[p, f2, l2]
+            _point(eye, zero, p1, K[_LC][f1, l1], a)
+            _point(eye, zero, p2, K[_LC][f2, l2], b)
+            d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            if d >= K[_LR][f1, l1] + K[_LR][f2, l2] - allowed:
+                continue
+            for g1 in range(K[_GS][f1, l1], K[_GS][f1, l1] + K[_GC][f1, l1]):
+                _point(eye, zero, p1, K[_GRCEN][g1], a)
+                for g2 in range(K[_GS][f2, l2], K[_GS][f2, l2] + K[_GC][f2, l2]):
+                    _point(eye, zero, p2, K[_GRCEN][g2], b)
+                    d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+                    if d >= K[_GRR][g1] + K[_GRR][g2] - allowed:
+                        continue
+                    hit = _spheres_overlap(p1, p2, g1, g2, K, allowed)
+                    if hit:
+                        break
+                if hit:
+                    break
+            if hit:
+                out[p, f1] = True
+                out[p, f2] = True
+
+
+@_jit
+def _spheres_overlap(p1, p2, g1, g2, K, allowed):
+    eye = np.zeros((3, 3))
+    zero = np.zeros(3)
+    for i in range(3):
+        eye[i, i] = 1.0
+    a = np.empty(3)
+    b = np.empty(3)
+    for s1 in range(K[_GRS][g1], K[_GRS][g1] + K[_GRC][g1]):
+        _point(eye, zero, p1, K[_SC][s1], a)
+        for s2 in range(K[_GRS][g2], K[_GRS][g2] + K[_GRC][g2]):
+            _point(eye, zero, p2, K[_SC][s2], b)
+            d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            if d < K[_SR][s1] + K[_SR][s2] - allowed:
+                return True
+    return False
+
+
+@_jit
+def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, cutoff, out):
+    """Least clearance (m) of the palm's sphere groups (root-frame poses (Gp, 4, 4)) per particle (P,)."""
+    c = np.empty(3)
+    for p in range(rot.shape[0]):
+        best = np.inf
+        for i in range(groups.shape[0]):
+            g = groups[i]
+            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose[i], g, g + 1, K, cutoff, c)
+            best = min(best, d)
+        out[p] = best

@@ -1,0 +1,139 @@
+"""The scene check of a general hand's decoding: its collision spheres against the
+Scene's planes and obstacles (a compiled loop over particles).
+
+At the grasp (the grasp posture at the root pose) and along the approach (the open
+pre-shape at the root pose moved back along the palm normal by
+:data:`APPROACH_FRACTIONS` of the approach distance), the least of ``scene distance -
+radius - clearance`` over the hand's spheres. A link's bounding sphere, then its groups'
+are checked first; only those within :data:`SCENE_CUTOFF` of the clearance are resolved
+sphere by sphere (above it the value is a lower bound: the particle is clear anyway).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point
+
+__all__ = ["scene_margins", "APPROACH_FRACTIONS"]
+
+#: Where along the approach the open hand is checked (0 = at the grasp pose).
+APPROACH_FRACTIONS = (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0)
+#: Margins above this (m) are lower bounds (culled).
+SCENE_CUTOFF = 0.005
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half):
+    """Least signed distance (m) of point c (3,) to the scene's solids (as Scene.signed_distance)."""
+    best = np.inf
+    for k in range(planes.shape[0]):
+        best = min(best, planes[k, 0] * c[0] + planes[k, 1] * c[1] + planes[k, 2] * c[2] + planes[k, 3])
+    for k in range(box_inv.shape[0]):
+        out2, inside = 0.0, -np.inf
+        for i in range(3):
+            v = box_inv[k, i, 0] * c[0] + box_inv[k, i, 1] * c[1] + box_inv[k, i, 2] * c[2] + box_inv[k, i, 3]
+            q = abs(v) - box_half[k, i]
+            out2 += max(q, 0.0) ** 2
+            inside = max(inside, q)
+        best = min(best, math.sqrt(out2) + min(inside, 0.0))
+    for k in range(sphere_center.shape[0]):
+        d = math.sqrt((c[0] - sphere_center[k, 0]) ** 2 + (c[1] - sphere_center[k, 1]) ** 2
+                      + (c[2] - sphere_center[k, 2]) ** 2)
+        best = min(best, d - sphere_radius[k])
+    for k in range(cyl_inv.shape[0]):
+        v = np.empty(3)
+        for i in range(3):
+            v[i] = cyl_inv[k, i, 0] * c[0] + cyl_inv[k, i, 1] * c[1] + cyl_inv[k, i, 2] * c[2] + cyl_inv[k, i, 3]
+        radial = math.sqrt(v[0] ** 2 + v[1] ** 2) - cyl_radius[k]
+        axial = abs(v[2]) - cyl_half[k]
+        best = min(best, math.sqrt(max(radial, 0.0) ** 2 + max(axial, 0.0) ** 2) + min(max(radial, axial), 0.0))
+    return best
+
+
+@_jit
+def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
+    best = np.inf
+    for g in range(g0, g1):
+        _point(rot, trans, pose, K[_GRCEN][g], c)
+        d = _scene_distance(c, *S) - K[_GRR][g]
+        if d > cutoff:
+            best = min(best, d)
+            continue
+        for s in range(K[_GRS][g], K[_GRS][g] + K[_GRC][g]):
+            _point(rot, trans, pose, K[_SC][s], c)
+            best = min(best, _scene_distance(c, *S) - K[_SR][s])
+    return best
+
+
+@_jit
+def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c):
+    """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4))."""
+    best = np.inf
+    for f in range(K[_NL].shape[0]):
+        for l in range(K[_NL][f]):
+            if K[_LR][f, l] < 0.0:
+                continue
+            _point(rot, trans, poses[f, l], K[_LC][f, l], c)
+            d = _scene_distance(c, *S) - K[_LR][f, l]
+            if d > cutoff:
+                best = min(best, d)
+                continue
+            g0 = K[_GS][f, l]
+            best = min(best, _groups_margin(rot, trans, poses[f, l], g0, g0 + K[_GC][f, l], K, S, cutoff, c))
+    if palm_bound[3] >= 0.0:
+        eye = np.eye(4)
+        _point(rot, trans, eye, palm_bound[:3], c)
+        d = _scene_distance(c, *S) - palm_bound[3]
+        if d > cutoff:
+            return min(best, d)
+        for i in range(palm_groups.shape[0]):
+            g = palm_groups[i]
+            best = min(best, _groups_margin(rot, trans, palm_pose[i], g, g + 1, K, S, cutoff, c))
+    return best
+
+
+@_jit
+def scene_clearances(rot, trans, approach, backs, grasp_poses, open_poses, K, palm_bound, palm_groups, palm_pose,
+                     S, cutoff, out):
+    """Least margin (m, before the clearance) per particle (P,): the grasp posture at the
+    root, then the open pre-shape moved back by each of ``backs`` (m) along ``approach`` (P, 3)."""
+    c = np.empty(3)
+    t = np.empty(3)
+    for p in range(rot.shape[0]):
+        best = _hand_margin(rot[p], trans[p], grasp_poses[p], K, palm_bound, palm_groups, palm_pose, S, cutoff, c)
+        for k in range(backs.shape[0]):
+            for i in range(3):
+                t[i] = trans[p, i] - backs[k] * approach[p, i]
+            best = min(best, _hand_margin(rot[p], t, open_poses[p], K, palm_bound, palm_groups, palm_pose, S,
+                                          cutoff, c))
+        out[p] = best
+
+
+def packed_scene(scene) -> tuple:
+    """The scene's arrays in the order the kernels take them."""
+    p = scene.packed()
+    return tuple(np.ascontiguousarray(p[k], dtype=np.float64) for k in (
+        "planes", "box_inv", "box_half", "sphere_center", "sphere_radius", "cyl_inv", "cyl_radius", "cyl_half_height"))
+
+
+def scene_margins(model, root: np.ndarray, grasp_poses: np.ndarray, open_poses: np.ndarray) -> np.ndarray:
+    """Least ``distance - radius - clearance`` (m) of the hand to the scene, per particle (P,).
+
+    root : (P, 4, 4) object frame; grasp_poses, open_poses : (P, F, Lmax, 4, 4) the finger
+    links in the root frame at the grasp posture and the pre-shape.
+    """
+    t = model.tables
+    rot, trans = np.ascontiguousarray(root[:, :3, :3]), np.ascontiguousarray(root[:, :3, 3])
+    approach = np.ascontiguousarray(rot @ t.basis[:, 2])
+    backs = np.array(APPROACH_FRACTIONS) * model.approach_distance
+    out = np.empty(len(root))
+    clearance = model.scene_clearance
+    scene_clearances(rot, trans, approach, backs, grasp_poses, open_poses, model.kin, t.palm_bound, t.palm_groups,
+                     t.palm_pose, model.scene_arrays, clearance + SCENE_CUTOFF, out)
+    return out - clearance

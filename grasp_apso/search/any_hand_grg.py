@@ -1,0 +1,137 @@
+"""Guided Random Generation for a general hand (paper section 4.2, the hand as data).
+
+Wrist orientations from the shape class (:meth:`grasp_apso.search.grg.ShapeClass.sample_wrists`,
+which also turns them to the free side of support planes), standoffs in the hand's range
+(biased toward the palm), pre-shapes within the joint limits: each closing joint in the
+open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense),
+the thumb's pre-shape joints anywhere in their range, the other fingers' abduction near its open value. A particle is kept
+when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
+more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..geometry.any_hand_decoder import AnyHandModel, decode_any
+from ..model.hand import rotation_to_wrist_angles
+from .grg import ShapeClass
+
+__all__ = ["AnyHandGenerator", "sample_any"]
+
+OPEN_FRACTION = 0.5
+#: Pre-shape joints of the fingers other than the thumb: within this fraction of their
+#: range either side of the open value (the thumb's: anywhere, for opposition).
+SPREAD_FRACTION = 0.15
+#: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR).
+REGENERATE_ROUNDS = 2
+REGENERATE_FACTOR = 0.5
+#: Rounds of drawing batches and the batch size over the particles wanted.
+DRAW_ROUNDS = 12
+DRAW_FACTOR = 1.5
+#: Batches are sized by the valid share seen so far (at least MIN_RATE), at most MAX_BATCH.
+MIN_RATE = 0.05
+MAX_BATCH = 400
+
+
+def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
+    """Pre-shapes (n, n_joints) within the limits (see the module docstring)."""
+    t = model.tables
+    lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
+    q = rng.uniform(lo, hi, (n, len(lo)))
+    for f in range(t.n_fingers):
+        thumb = model.hand.fingers[f].is_thumb
+        for k in range(int(t.j_count[f])):
+            target = t.j_target[f, k]
+            j = int(t.j_index[f, k])
+            if np.isnan(target):
+                if not thumb:  # abduction near its open value: spread fingers collide
+                    half = SPREAD_FRACTION * (hi[j] - lo[j])
+                    q[:, j] = np.clip(t.open_q[j] + rng.uniform(-half, half, n), lo[j], hi[j])
+                continue
+            start = t.open_q[j]
+            q[:, j] = start + rng.uniform(0.0, fraction, n) * (target - start)
+    return q
+
+
+def sample_any(model: AnyHandModel, shape: ShapeClass, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n GRG particles (n, D)."""
+    t, lay = model.tables, model.layout
+    x = np.empty((n, lay.dims))
+    x[:, lay.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
+    x[:, lay.standoff] = t.upper[lay.standoff] * rng.random(n) ** 1.5
+    x[:, lay.joints] = _preshape(model, n, rng, OPEN_FRACTION)
+    return x
+
+
+class AnyHandGenerator:
+    """GRG draws for the swarm (``draw``), with the verification test; counts evaluations."""
+
+    def __init__(self, model: AnyHandModel, shape: ShapeClass, rng: np.random.Generator,
+                 wrist_position: np.ndarray | None = None, should_stop: Callable[[], bool] | None = None):
+        self.model, self.shape, self.rng = model, shape, rng
+        self.wrist_position = wrist_position
+        self.should_stop = should_stop
+        self.evaluations = 0
+        self.rate = 1.0  # share of draws found valid so far (sizes the batches)
+
+    def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Regenerate illegal fingers in bounded rounds (only the changed particles are
+        decoded again): (x, good (n,) bool, near (n,) bool: valid but for the scene)."""
+        t, s = self.model.tables, self.model.settings
+        fraction = OPEN_FRACTION
+        good = np.zeros(len(x), dtype=bool)
+        near = np.zeros(len(x), dtype=bool)
+        rows = np.arange(len(x))
+        for round_ in range(REGENERATE_ROUNDS + 1):
+            decoded = decode_any(self.model, x[rows], self.wrist_position)
+            self.evaluations += len(rows)
+            # Legal but for the scene counts too (the swarm's fitness guides it out of the
+            # scene; the final selection requires it clear): scene-clear ones come first.
+            illegal = decoded.finger_illegal(s.max_penetration)
+            near[rows] = ~illegal.any(axis=1) & (decoded.palm_clearance >= -s.max_penetration) & (
+                decoded.n_contacts >= 2)
+            good[rows] = near[rows] & decoded.legal(s.max_penetration)
+            bad = illegal & ~near[rows][:, None]
+            if round_ == REGENERATE_ROUNDS or not bad.any():
+                break
+            fraction *= REGENERATE_FACTOR
+            fresh = _preshape(self.model, len(rows), self.rng, fraction)
+            for f in range(t.n_fingers):
+                joints = 4 + t.j_index[f, :int(t.j_count[f])]
+                sel = bad[:, f]
+                x[np.ix_(rows[sel], joints)] = fresh[np.ix_(sel, joints - 4)]
+            rows = rows[bad.any(axis=1)]
+        return x, good, near & ~good
+
+    def draw(self, k: int) -> np.ndarray:
+        """k particles: valid ones first; filled with the last batch's others when the
+        bounded rounds find fewer. PlanningError when no draw decodes to a valid grasp."""
+        found: list[np.ndarray] = []
+        close: list[np.ndarray] = []
+        spare: np.ndarray | None = None
+        count = 0
+        for _ in range(DRAW_ROUNDS):
+            if count >= k or (self.should_stop is not None and self.should_stop()):
+                break
+            batch = int(min(MAX_BATCH, np.ceil(DRAW_FACTOR * (k - count) / max(self.rate, MIN_RATE))))
+            x, good, near = self._verified(sample_any(self.model, self.shape, batch, self.rng))
+            self.rate = 0.5 * self.rate + 0.5 * float(np.mean(good | near))
+            found.append(x[good])
+            close.append(x[near])
+            count += int(good.sum()) + int(near.sum())
+            spare = x[~good & ~near]
+        valid = np.concatenate(found + close) if found else np.empty((0, self.model.layout.dims))
+        if len(valid) == 0 and not (self.should_stop is not None and self.should_stop()):
+            raise PlanningError(
+                f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "
+                f"{self.evaluations} candidates (shape class {self.shape.name}) and none made two legal pad "
+                "contacts; the object may be too large or too small for this hand")
+        if len(valid) >= k:
+            return valid[:k]
+        rest = spare if spare is not None and len(spare) else sample_any(self.model, self.shape, k, self.rng)
+        fill = rest[self.rng.integers(0, len(rest), k - len(valid))]
+        return np.concatenate([valid, fill]) if len(valid) else fill

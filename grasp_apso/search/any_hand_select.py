@@ -1,0 +1,206 @@
+"""Final verification, ranking and the result of a general hand's plan.
+
+The candidates are the swarm's best and the leaders' archive (distinct wrists), decoded
+again and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
+closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
+of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
+object, the scene at the grasp, the approach from the pre-grasp) when that module is
+there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`; with ``simulate`` each is
+checked in MuJoCo (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..quality.measures import epsilon_quality
+from .archive import wrists_distinct
+from .ranking import grasp_quality, rank_order
+from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
+
+__all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture"]
+
+#: The squeeze (rad or m) when the simulation settings are not importable.
+SQUEEZE = math.radians(8.0)
+
+
+@dataclass
+class AnyChecked:
+    """One verified candidate (object frame unless said)."""
+
+    decoded: object          # AnyDecoded of one particle
+    fitness: float
+    epsilon: float
+    force_closure: bool
+    valid: bool
+    scene_clear: bool
+    scene_distance: float
+    fcl: object | None
+    note: str = ""
+
+
+def _module(name: str):
+    """An optional module of another part of issue 21 (None until it is merged)."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None
+
+
+def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
+    s = model.settings
+    mask = decoded.contact[0]
+    legal = bool(decoded.legal(s.max_penetration)[0])
+    eps, closure = 0.0, False
+    if mask.sum() >= 2:
+        eps, closure = epsilon_quality(decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
+                                       np.asarray(obj.center_of_mass, float), options.friction,
+                                       torque_scale=float(obj.characteristic_radius))
+    scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
+    distance, report, note = math.inf, None, ""
+    if fcl_api is not None:
+        q, root = decoded.q[0], decoded.root[0]
+        report = fcl_api.object_report(hc, q, root, obj)
+        legal = legal and bool(report.legal)
+        if scene is not None:
+            root_plan = pose @ root
+            approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
+            distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))
+            path = fcl_api.approach_report(hc, decoded.q_pre[0], root_plan, approach, options.approach_distance,
+                                           scene, obj, pose)
+            distance = min(distance, float(path.min_scene_distance))
+            scene_clear = scene_clear and distance >= options.clearance and not path.hits_object
+    else:
+        note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
+    return AnyChecked(decoded, float(fitness), float(eps), bool(closure), legal and mask.sum() >= 2,
+                      scene_clear, distance, report, note)
+
+
+def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tuple[list[AnyChecked], str]:
+    """Verified candidates (best fitness first): valid and (with a scene) clear of it, up
+    to ``max_grasps``; without a scene at least the best one even when not valid."""
+    pool = [np.clip(swarm.best, model.lower, model.upper)]
+    if len(archive):
+        pool.extend(archive.x)
+    x = np.stack(pool)
+    decoded = problem.decode(x)
+    fitness, _ = problem.fitness(decoded)
+    order = np.argsort(-fitness, kind="stable")
+    fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
+    hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
+    kept: list[AnyChecked] = []
+    first: AnyChecked | None = None
+    rejected = 0
+    for i in order:
+        if len(kept) >= options.max_grasps:
+            break
+        one = decoded.take(np.array([i]))
+        if kept and not all(wrists_distinct(c.decoded.wrist[0, :3, :3], c.decoded.wrist[0, :3, 3],
+                                            one.wrist[:, :3, :3], one.wrist[:, :3, 3], options.min_orientation_gap,
+                                            options.min_position_gap)[0] for c in kept):
+            continue
+        checked = _check(model, problem, one, fitness[i], options, pose, obj, scene, fcl_api, hc)
+        first = first or checked
+        if checked.valid and checked.scene_clear:
+            kept.append(checked)
+        else:
+            rejected += 1
+    if not kept:
+        if scene is not None or first is None:
+            raise PlanningError(
+                f"scene: no collision-free grasp: none of the {len(x)} best distinct grasps the search found with "
+                f"hand {model.hand.name!r} is valid and keeps the clearance ({options.clearance * 1000:.1f} mm) "
+                "from the support planes and obstacles at the grasp and along the approach", "scene")
+        kept = [first]
+    message = ""
+    if len(kept) < options.max_grasps:
+        message = (f"{len(kept)} of {options.max_grasps} grasps: the search kept {len(archive)} distinct leaders, "
+                   f"{rejected} failed verification (legality, contacts, the scene and the approach)")
+    if kept[0].note:
+        message = (message + "; " if message else "") + kept[0].note
+    return kept, message
+
+
+def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
+    """The grasp posture q (n,) pushed the simulation's ``squeeze`` further along every
+    joint's closing sense, within the limits: the same posture as
+    :func:`grasp_apso.simulation.any_hand.squeezed_positions` (which imports MuJoCo, so it is
+    not called for every plan)."""
+    settings = _module("grasp_apso.simulation.settings")
+    amount = settings.SimulationSettings().squeeze if settings is not None else SQUEEZE
+    hand = model.hand
+    out = np.array(q, dtype=float)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            out[hand.actuated_joints.index(joint)] += sense * amount
+    return np.clip(out, hand.lower, hand.upper)
+
+
+def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, str]:
+    sim = _module("grasp_apso.simulation.any_hand")
+    if sim is None:
+        return [None] * len(checked), "simulate: the MuJoCo check of a general hand is not available"
+    out = []
+    for c in checked:
+        if should_stop is not None and should_stop():
+            out.append(None)
+            continue
+        d = c.decoded
+        out.append(sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                                         squeeze_posture(model, d.q[0]), scene, options.friction,
+                                         should_stop=should_stop))
+    return out, ""
+
+
+def build_result(model, checked, message, swarm, problem, options, pose, shape, preparation, t1, obj, scene,
+                 should_stop) -> GraspResult:
+    """The ranked candidates and the GraspResult of a general hand's plan."""
+    hand, t = model.hand, model.tables
+    sims = None
+    if options.simulate:
+        sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
+        if note:
+            message = (message + "; " if message else "") + note
+    held = None if sims is None else np.array([s is not None and s.held for s in sims])
+    quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
+                            np.array([c.force_closure for c in checked]), held)
+    order = rank_order(quality, np.array([c.epsilon for c in checked]))
+    rot, trans = pose[:3, :3], pose[:3, 3]
+    candidates = []
+    for rank, i in enumerate(order):
+        c, d = checked[i], checked[i].decoded
+        root = pose @ d.root[0]
+        approach = rot @ (d.root[0, :3, :3] @ t.basis[:, 2])
+        pre = root.copy()
+        pre[:3, 3] -= options.approach_distance * approach
+        sim = None if sims is None else sims[i]
+        contacts = tuple(Contact(hand.fingers[f].name, rot @ d.contact_points[0, f] + trans,
+                                 rot @ d.contact_normals[0, f]) for f in np.flatnonzero(d.contact[0]))
+        candidates.append(GraspCandidate(
+            id=f"g{rank}", rank=rank, joint_positions=d.q[0].copy(), pre_grasp_positions=d.q_pre[0].copy(),
+            wrist_pose=root, pre_grasp_pose=pre, approach=approach, approach_distance=options.approach_distance,
+            grasp_quality=float(quality[i]), fitness=c.fitness, epsilon=c.epsilon, force_closure=c.force_closure,
+            valid=c.valid, contacts=contacts, scene_distance=c.scene_distance,
+            sim_result=SIM_NOT_RUN if sim is None else (SIM_HELD if sim.held else SIM_DROPPED),
+            sim_max_shift=math.nan if sim is None else float(sim.max_shift),
+            sim_max_turn=math.nan if sim is None else float(sim.max_turn),
+            wrist_in_object=d.root[0].copy(), joints=np.zeros((0, 4, 3)), pre_grasp_joints=np.zeros((0, 4, 3)),
+            squeeze_positions=squeeze_posture(model, d.q[0])))
+    top, best = checked[int(order[0])], candidates[0]
+    d = top.decoded
+    return GraspResult(
+        configuration=best.joint_positions.copy(), joint_names=tuple(hand.actuated_joints),
+        joint_positions=best.joint_positions.copy(), standoff=float(d.closed[0, t.layout.standoff]),
+        wrist_pose=best.wrist_pose.copy(), wrist_in_object=best.wrist_in_object.copy(), fitness=top.fitness,
+        epsilon=top.epsilon, force_closure=top.force_closure, contacts=best.contacts, valid=top.valid,
+        history=tuple(swarm.history), iterations_run=swarm.iterations_run, evaluations=problem.evaluations,
+        planning_time=time.perf_counter() - t1, preparation_time=preparation, cancelled=swarm.cancelled,
+        algorithm=options.algorithm, shape_class=shape.name, fcl=top.fcl, joints=np.zeros((0, 4, 3)),
+        max_penetration=float(d.penetration[0].max()), tip_gaps=d.tip_gap[0].copy(), runner_up=False,
+        candidates=tuple(candidates), candidates_message=message, hand_name=hand.name, hand_hash=hand.source_hash)

@@ -1,0 +1,464 @@
+"""The MuJoCo model of a grasp check for any hand, from the hand's OWN description file
+(DESIGN.md Part 3, "Simulation and database for any hand"), edited through ``mujoco.MjSpec``.
+
+- The hand: an MJCF file as it is (its includes, defaults, meshes, joint equalities and
+  tendons kept; visual meshes whose files are missing dropped as the loader drops them);
+  a URDF through MuJoCo's own URDF import (``fusestatic`` off so every link stays a body,
+  visuals discarded, mesh paths resolved as the hand loader resolves them; ``mimic``
+  becomes MuJoCo joint equalities); the project's YAML through its generated URDF.
+- Only the hand stays: the world's other bodies and geoms (tables, objects, floors, mocap
+  targets of the file), its actuators, sensors and keyframes are removed.
+- The hand root held at ``root_pose``: the joints between the world and the root link (a
+  free joint, arm and wrist joints: ``hand.held_joints``) are removed and the bodies on
+  that chain fixed where the held values put them, the top body placed so that the root
+  body is at ``root_pose``; the hand's moving joints start from the root, welded to the
+  world without a soft constraint.
+- Hand self-contacts are the file's, except between bodies whose geoms already overlap
+  in the open posture (a thumb base modelled inside the palm box): those pairs are
+  excluded, else the solver pushes the joints off their targets.
+- Compiled once per (object, hand, scene, settings) and cached (MuJoCo compiles a hand of
+  many meshes in 0.5 s); each grasp moves a copy (the top body, the object's free joint).
+- Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
+  servo's time constant stays ``joint_damping / kp``; torque within
+  ``settings.max_torque``) on the actuated joints, in ``hand.actuated_joints`` order
+  (``data.ctrl`` = targets, rad or m).
+  Joint armature and damping are raised to at least the settings' values: a servo is
+  stable at the protocol's 4 ms step only with enough inertia on the joint (a bare
+  fingertip of 1e-6 kg m^2 under 2 N m/rad would need a 0.7 ms step).
+- The object: a free body of convex parts (:mod:`.convex`), mass ``settings.object_mass``
+  at its centre of mass with the uniform-density inertia; its geoms and the scene's
+  geoms collide with every hand geom that collides at all (all contype/conaffinity bits)
+  and carry the contact parameters (friction mu, condim, solref, solimp) with a higher
+  ``priority`` than any hand geom, so MuJoCo uses them for every contact.
+- The scene (support planes, BOX/SPHERE/CYLINDER obstacles) as static world geoms; the
+  protocol switches their contacts off before the disturbances.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, SimulationError
+from ..model.scene import BOX, CYLINDER, SPHERE
+from .mjcf import matrix_to_quat, object_inertia, plane_frame
+from .settings import SimulationSettings
+
+__all__ = ["AnyHandScene", "build_any_hand_scene", "OBJECT_BODY"]
+
+#: Name of the object's body (free joint ``<OBJECT_BODY>_free``).
+OBJECT_BODY = "grasp_object"
+#: Every contype / conaffinity bit MuJoCo has (int32, sign bit excluded).
+_ALL_BITS = (1 << 31) - 1
+#: Lower bounds of a hand body's mass (kg) and inertia (kg m^2) (MuJoCo's boundmass /
+#: boundinertia).
+_MIN_MASS = 0.001
+_MIN_INERTIA = 1e-8
+
+
+@dataclass(frozen=True, eq=False)
+class AnyHandScene:
+    """A compiled check: ``model`` (mujoco.MjModel) and ``data`` (mujoco.MjData, at rest).
+
+    Attributes
+    ----------
+    object_body, root_body : int
+        Body ids of the object and of the hand's root link.
+    scene_geoms : tuple of int
+        Geom ids of the support planes and obstacles.
+    joint_qpos : tuple of (int, int)
+        ``(qpos address, index in hand.joint_names)`` of every hand joint the model moves.
+    """
+
+    model: object
+    data: object
+    object_body: int
+    root_body: int
+    scene_geoms: tuple[int, ...]
+    joint_qpos: tuple[tuple[int, int], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class _Template:
+    """A compiled check with the hand's top body and the object at the identity: moved
+    per grasp on a copy (``top_to_root`` (4, 4): the root body in the top body's frame)."""
+
+    model: object
+    top_body: int
+    top_to_root: np.ndarray
+    object_body: int
+    object_qpos: int
+    root_body: int
+    scene_geoms: tuple[int, ...]
+    joint_qpos: tuple[tuple[int, int], ...]
+
+
+def _pose(pos, quat) -> np.ndarray:
+    import mujoco
+
+    out = np.eye(4)
+    m = np.empty(9)
+    mujoco.mju_quat2Mat(m, np.asarray(quat, float))
+    out[:3, :3] = m.reshape(3, 3)
+    out[:3, 3] = pos
+    return out
+
+
+def _set_pose(body, pose: np.ndarray) -> None:
+    import mujoco
+
+    body.pos = pose[:3, 3]
+    body.quat = matrix_to_quat(pose[:3, :3])
+    body.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
+
+
+def _urdf_spec(text: str, base: Path):
+    """MuJoCo's URDF import of ``text``, mesh paths resolved against ``base``."""
+    import mujoco
+
+    from ..model.hands.urdf_loader import resolve_mesh_path
+
+    root = ET.fromstring(text.encode("utf-8") if isinstance(text, str) else text)
+    for old in root.findall("mujoco"):
+        root.remove(old)
+    ext = ET.SubElement(root, "mujoco")
+    ET.SubElement(ext, "compiler", fusestatic="false", discardvisual="true", strippath="false")
+    spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
+    for mesh in spec.meshes:
+        if mesh.file:
+            mesh.file = str(resolve_mesh_path(mesh.file, base))
+    return spec
+
+
+def _hand_spec(hand):
+    """The hand's own description as an ``MjSpec`` (unnamed bodies named ``body<id>`` as
+    the hand loader names them)."""
+    path = Path(hand.source_path) if hand.source_path else None
+    if path is None or not path.is_file():
+        raise InputError(f"hand: the description file of hand {hand.name!r} is not available "
+                         f"({hand.source_path or 'built from data'}); load it with load_hand(path)", "hand")
+    suffix = path.suffix.lower()
+    if suffix == ".xml":
+        from ..model.hands.mjcf_loader import open_spec
+
+        spec = open_spec(path, [])
+    elif suffix == ".urdf":
+        spec = _urdf_spec(path.read_text(encoding="utf-8"), path.parent)
+    else:  # the project's YAML: its generated URDF, as the loader reads it
+        from ..model.hand import load_hand as load_paper_hand
+        from ..model.urdf import hand_to_urdf
+
+        spec = _urdf_spec(hand_to_urdf(load_paper_hand(path)), path.parent)
+    for i, body in enumerate(spec.bodies):
+        if not body.name:
+            body.name = f"body{i}"
+    # Links without mass (a URDF's frame links) cannot move in MuJoCo: a floor of 1 g and
+    # 1e-8 kg m^2 (below any real finger link: bodies that have mass keep theirs).
+    spec.compiler.boundmass = max(float(spec.compiler.boundmass), _MIN_MASS)
+    spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), _MIN_INERTIA)
+    return spec
+
+
+def _keep_only_the_hand(spec, top_name: str) -> None:
+    """Remove what is not the hand: other world bodies and world geoms, actuators,
+    sensors, keyframes, and the constraints and contact pairs that named removed bodies."""
+    for body in list(spec.worldbody.bodies):
+        if body.name != top_name:
+            spec.delete(body)
+    for geom in list(spec.worldbody.geoms):
+        spec.delete(geom)
+    for group in (spec.actuators, spec.sensors, spec.keys):
+        for element in list(group):
+            spec.delete(element)
+    bodies = {b.name for b in spec.bodies}
+    geoms = {g.name for g in spec.geoms}
+    import mujoco
+
+    for eq in list(spec.equalities):
+        if eq.type in (mujoco.mjtEq.mjEQ_WELD, mujoco.mjtEq.mjEQ_CONNECT) and eq.objtype == mujoco.mjtObj.mjOBJ_BODY \
+                and not ({eq.name1, eq.name2} - {""} <= bodies):
+            spec.delete(eq)
+    for ex in list(spec.excludes):
+        if not {ex.bodyname1, ex.bodyname2} <= bodies:
+            spec.delete(ex)
+    for pair in list(spec.pairs):
+        if not {pair.geomname1, pair.geomname2} <= geoms:
+            spec.delete(pair)
+
+
+def _exclude_overlaps(spec, model, hand, postures) -> None:
+    """Exclude the contacts of hand body pairs whose geoms already overlap at one of
+    ``postures`` ((m,) full joint vectors): the file's own overlapping geometry (a thumb
+    base inside the palm box) would otherwise push the joints off their targets."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    # Parent-child pairs too: once the root is welded to the world MuJoCo no longer filters
+    # the root's contacts with its children.
+    flags = int(model.opt.disableflags)
+    model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    pairs = set()
+    for full in postures:
+        for name, value in zip(hand.joint_names, full):
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j >= 0 and model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+                data.qpos[model.jnt_qposadr[j]] = value
+        mujoco.mj_fwdPosition(model, data)
+        for c in data.contact[:data.ncon]:
+            if c.dist < 0:
+                a, b = (model.body(model.geom_bodyid[g]).name for g in (c.geom1, c.geom2))
+                pairs.add(tuple(sorted((a, b))))
+    model.opt.disableflags = flags
+    for a, b in sorted(pairs):
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+
+
+def _hold_root(spec, hand, postures) -> np.ndarray:
+    """Fix the chain from the world to the root link at the held joint values (its
+    joints removed), the top body at the world origin; exclude the contacts of bodies that
+    overlap at ``postures`` (:func:`_exclude_overlaps`). Returns the root body's pose in
+    the top body's frame (4, 4)."""
+    import mujoco
+
+    chain = [spec.body(hand.root_link)]
+    if chain[0] is None:
+        raise SimulationError(f"simulation: the root link {hand.root_link!r} is not a body of the compiled hand")
+    while chain[-1].parent is not None and chain[-1].parent.name != "world":
+        chain.append(chain[-1].parent)
+    chain.reverse()  # top body first
+    try:
+        model = spec.compile()
+    except Exception as exc:
+        raise SimulationError(f"simulation: MuJoCo cannot compile hand {hand.name!r}: {exc}") from exc
+    _exclude_overlaps(spec, model, hand, postures)
+    data = mujoco.MjData(model)
+    for name, value in hand.held_joints.items():
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0 and model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            data.qpos[model.jnt_qposadr[j]] = value
+    mujoco.mj_kinematics(model, data)
+    world = [_pose(data.xpos[model.body(b.name).id], data.xquat[model.body(b.name).id]) for b in chain]
+    for k in range(1, len(chain)):
+        _set_pose(chain[k], np.linalg.inv(world[k - 1]) @ world[k])
+    top_to_root = np.linalg.inv(world[0]) @ world[-1]
+    _set_pose(chain[0], np.eye(4))
+    chain[0].mocap = False
+    held = {j.name for body in chain for j in body.joints}
+    _drop_users_of(spec, model, held)
+    for body in chain:
+        for joint in list(body.joints):
+            spec.delete(joint)
+    return top_to_root
+
+
+def _drop_users_of(spec, model, joints: set[str]) -> None:
+    """Remove the tendons that wrap a removed joint (the file's wrist tendons), and the
+    equalities that name a removed joint or tendon."""
+    import mujoco
+
+    tendons = list(spec.tendons)
+    gone = set()
+    for t in range(model.ntendon):
+        adr, num = model.tendon_adr[t], model.tendon_num[t]
+        wraps = [int(model.wrap_objid[w]) for w in range(adr, adr + num)
+                 if model.wrap_type[w] == mujoco.mjtWrap.mjWRAP_JOINT]
+        if any(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) in joints for j in wraps):
+            gone.add(tendons[t].name or f"tendon{t}")
+            spec.delete(tendons[t])
+    for eq in list(spec.equalities):
+        if eq.type == mujoco.mjtEq.mjEQ_JOINT and {eq.name1, eq.name2} & joints \
+                or eq.type == mujoco.mjtEq.mjEQ_TENDON and {eq.name1, eq.name2} & gone:
+            spec.delete(eq)
+
+
+def _contact(geom, settings: SimulationSettings, priority: int) -> None:
+    geom.contype = _ALL_BITS
+    geom.conaffinity = _ALL_BITS
+    geom.priority = priority
+    geom.condim = settings.condim
+    geom.friction = [settings.friction, settings.torsional_friction, settings.rolling_friction]
+    geom.solref = list(settings.solref)
+    geom.solimp = [*settings.solimp, 0.5, 2.0]
+    geom.margin = 0.0
+    geom.gap = 0.0
+
+
+def _add_scene(spec, scene, settings: SimulationSettings, priority: int) -> list[str]:
+    import mujoco
+
+    names = []
+    if scene is None:
+        return names
+    for i, plane in enumerate(np.asarray(scene.planes, float).reshape(-1, 4)):
+        point, quat = plane_frame(plane)
+        g = spec.worldbody.add_geom(name=f"scene_plane{i}", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=point, quat=quat,
+                                    size=[0.0, 0.0, 1.0])
+        _contact(g, settings, priority)
+        names.append(g.name)
+    for i, ob in enumerate(scene.obstacles):
+        dims = [float(d) for d in ob.dimensions]
+        if ob.kind == BOX:
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [d / 2.0 for d in dims]
+        elif ob.kind == SPHERE:
+            kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [dims[0], 0.0, 0.0]
+        elif ob.kind == CYLINDER:
+            kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [dims[1], dims[0] / 2.0, 0.0]
+        else:  # Scene validates kinds; a new kind must be added here
+            raise InputError(f"scene.obstacles[{i}]: kind {ob.kind} is not simulated", "scene")
+        pose = np.asarray(ob.pose, float)
+        g = spec.worldbody.add_geom(name=f"scene_obstacle{i}", type=kind, size=size, pos=pose[:3, 3],
+                                    quat=matrix_to_quat(pose[:3, :3]))
+        _contact(g, settings, priority)
+        names.append(g.name)
+    return names
+
+
+def _add_servos(spec, hand, settings: SimulationSettings) -> None:
+    import mujoco
+
+    for joint in spec.joints:
+        joint.armature = max(float(np.max(joint.armature)), settings.joint_armature)
+        joint.damping = np.maximum(np.asarray(joint.damping, float), settings.joint_damping)
+    # The servo's time constant damping / kp is the settings' (0.05 s) on a joint whose
+    # file damps it more (robosuite's Inspire and Fourier hands: 1 N m s/rad), else the
+    # fingers would lag their targets by 0.2 rad after the closing.
+    tau = settings.joint_damping / settings.kp
+    for name in hand.actuated_joints:
+        joint = spec.joint(name)
+        if joint is None:
+            raise SimulationError(f"simulation: actuated joint {name!r} is not a joint of the compiled hand")
+        kp = max(settings.kp, float(np.max(joint.damping)) / tau)
+        a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.dyntype = mujoco.mjtDyn.mjDYN_NONE
+        a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        gain = np.zeros(len(a.gainprm))
+        gain[0] = kp
+        bias = np.zeros(len(a.biasprm))
+        bias[1] = -kp
+        a.gainprm, a.biasprm = gain, bias
+        a.gear = [1.0, 0, 0, 0, 0, 0]
+        a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        a.forcerange = [-settings.max_torque, settings.max_torque]
+
+
+def _add_object(spec, parts, settings: SimulationSettings, priority: int) -> None:
+    import mujoco
+
+    body = spec.worldbody.add_body(name=OBJECT_BODY)
+    body.add_freejoint(name=f"{OBJECT_BODY}_free")
+    body.simple = 0  # its inertia is replaced after compiling (MuJoCo's body/simple="false")
+    for i, part in enumerate(parts):
+        mesh = spec.add_mesh(name=f"{OBJECT_BODY}_part{i}")
+        mesh.uservert = np.asarray(part, float).ravel()
+        g = body.add_geom(name=f"{OBJECT_BODY}_part{i}", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name)
+        g.density = 1000.0  # replaced by the object's own inertia after compiling
+        _contact(g, settings, priority)
+
+
+def _set_object_inertia(model, data, body: int, obj, mass: float) -> None:
+    """The object's mass at its centre of mass with its inertia (whatever the file's
+    ``inertiafromgeom`` says), then MuJoCo's derived constants recomputed."""
+    import mujoco
+
+    com, inertia = object_inertia(obj, mass)
+    values, vectors = np.linalg.eigh(inertia)
+    if np.linalg.det(vectors) < 0:
+        vectors[:, 0] *= -1.0
+    model.body_mass[body] = mass
+    model.body_ipos[body] = com
+    model.body_iquat[body] = matrix_to_quat(vectors)
+    model.body_inertia[body] = np.maximum(values, 1e-12)
+    mujoco.mj_setConst(model, data)
+
+
+def _scene_key(scene) -> tuple:
+    if scene is None:
+        return ()
+    planes = np.asarray(scene.planes, float).reshape(-1, 4)
+    return (planes.tobytes(), tuple((o.kind, tuple(o.dimensions), np.asarray(o.pose, float).tobytes())
+                                    for o in scene.obstacles))
+
+
+def _compile_template(hand, obj, parts, scene, settings: SimulationSettings) -> _Template:
+    import mujoco
+
+    spec = _hand_spec(hand)
+    root = spec.body(hand.root_link)
+    if root is None:
+        raise SimulationError(f"simulation: the root link {hand.root_link!r} is not a body of {hand.source_path}")
+    top = root
+    while top.parent is not None and top.parent.name != "world":
+        top = top.parent
+    top_name = top.name
+    _keep_only_the_hand(spec, top_name)
+    top_to_root = _hold_root(spec, hand, [hand.full_positions(hand.open_configuration())])
+    _add_servos(spec, hand, settings)
+    priority = 1 + max([int(g.priority) for g in spec.geoms] + [0])
+    _add_object(spec, parts, settings, priority)
+    scene_names = _add_scene(spec, scene, settings, priority)
+    opt = spec.option
+    opt.timestep = settings.timestep
+    opt.gravity = [0.0, 0.0, 0.0]
+    opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    opt.impratio = settings.impratio
+    try:
+        model = spec.compile()
+    except Exception as exc:
+        raise SimulationError(f"simulation: MuJoCo could not build the scene of hand {hand.name!r}: "
+                              f"{str(exc).splitlines()[0][:300]}") from exc
+    body = model.body(OBJECT_BODY).id
+    _set_object_inertia(model, mujoco.MjData(model), body, obj, settings.object_mass)
+    joint_qpos = []
+    for index, name in enumerate(hand.joint_names):
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0:
+            joint_qpos.append((int(model.jnt_qposadr[j]), index))
+    top_to_root.flags.writeable = False
+    return _Template(model=model, top_body=model.body(top_name).id, top_to_root=top_to_root, object_body=body,
+                     object_qpos=int(model.jnt_qposadr[model.body_jntadr[body]]),
+                     root_body=model.body(hand.root_link).id,
+                     scene_geoms=tuple(model.geom(n).id for n in scene_names), joint_qpos=tuple(joint_qpos))
+
+
+def build_any_hand_scene(hand, obj, parts, obj_pose: np.ndarray, root_pose: np.ndarray, scene,
+                         settings: SimulationSettings) -> AnyHandScene:
+    """The check of one grasp (see the module docstring), from a compiled template cached
+    per (object, hand, scene, settings) (:func:`grasp_apso.cache.cached`, "sim_model"):
+    a copy of it with the hand's top body placed so that the root is at ``root_pose`` and
+    the object's free joint at ``obj_pose``.
+
+    Parameters
+    ----------
+    hand : grasp_apso.model.hands.HandModel (loaded from a file: ``source_path``)
+    obj : GraspObject
+    parts : sequence of (N_i, 3) float, m: the object's convex parts, object frame
+    obj_pose, root_pose : (4, 4) float: the object and the hand's root link in the world
+        (planning) frame
+    scene : grasp_apso.model.scene.Scene or None, world frame
+    settings : SimulationSettings
+    """
+    import copy
+
+    import mujoco
+
+    from ..cache import cached
+
+    key = (obj.mesh_hash, len(parts), hand.source_hash, hand.source_path, _scene_key(scene), settings)
+    template = cached("sim_model", key, lambda: _compile_template(hand, obj, parts, scene, settings),
+                      nbytes=lambda v: int(mujoco.mj_sizeModel(v.model)))
+    model = copy.copy(template.model)
+    top = np.asarray(root_pose, float) @ np.linalg.inv(template.top_to_root)
+    model.body_pos[template.top_body] = top[:3, 3]
+    model.body_quat[template.top_body] = matrix_to_quat(top[:3, :3])
+    data = mujoco.MjData(model)
+    adr = template.object_qpos
+    data.qpos[adr:adr + 3] = obj_pose[:3, 3]
+    data.qpos[adr + 3:adr + 7] = matrix_to_quat(obj_pose[:3, :3])
+    return AnyHandScene(model=model, data=data, object_body=template.object_body, root_body=template.root_body,
+                        scene_geoms=template.scene_geoms, joint_qpos=template.joint_qpos)

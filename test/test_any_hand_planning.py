@@ -1,0 +1,169 @@
+"""Planning with general hands (issue 21): the Allegro-like URDF hand, the Shadow hand and
+the Inspire hand, on the built-in cube, sphere and barrel and the real mug, each resting on
+a table.
+
+Every returned grasp is checked independently of the planner's code: joint limits from the
+hand model; the pads (spheres of ``pad_radius`` whose surface passes through the pad point,
+posed by ``hand.link_transforms`` at the returned posture and ``wrist_pose``) on the
+object's surface within 2 mm by trimesh's exact proximity; no link
+within the clearance of the table by python-fcl on each link's exact collision geometry
+(built here from ``hand.collision``); the same seed gives the same result.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import fcl
+import numpy as np
+import pytest
+import trimesh
+
+from grasp_apso.errors import PlanningError
+from grasp_apso.model.builtin import builtin
+from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.mesh_files import from_file
+from grasp_apso.model.scene import Scene
+from grasp_apso.search.planner import PlanOptions, plan
+from hand_files import installed_hand, write_allegro_like
+
+ROOT = Path(__file__).resolve().parents[1]
+OBJECTS = ("cube", "sphere", "barrel", "mug")
+HANDS = ("allegro", "shadow", "inspire")
+SEEDS = (0, 1)
+OPTIONS = PlanOptions(particles=30, iterations=20, max_grasps=3)
+PAD_TOLERANCE = 0.002
+
+
+@pytest.fixture(scope="module")
+def hands(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("hands")
+    return {
+        "allegro": load_hand(write_allegro_like(folder, "mixed")),
+        "shadow": load_hand(installed_hand("shadow")),
+        "inspire": load_hand(installed_hand("inspire")),
+    }
+
+
+def _object(name: str):
+    if name == "mug":
+        return from_file(str(ROOT / "grasp_apso" / "data" / "meshes" / "mug.stl"))
+    return builtin(name)
+
+
+def _fcl_geometry(geom):
+    """python-fcl geometry of one LinkGeometry (its exact shape)."""
+    if geom.kind == "box":
+        return fcl.Box(*(2.0 * np.asarray(geom.size)))
+    if geom.kind == "sphere":
+        return fcl.Sphere(geom.size[0])
+    if geom.kind == "cylinder":
+        return fcl.Cylinder(geom.size[0], 2.0 * geom.size[1])
+    if geom.kind == "capsule":
+        return fcl.Capsule(geom.size[0], 2.0 * geom.size[1])
+    model = fcl.BVHModel()
+    model.beginModel(len(geom.mesh.vertices), len(geom.mesh.faces))
+    model.addSubModel(np.asarray(geom.mesh.vertices, float), np.asarray(geom.mesh.faces, np.int64))
+    model.endModel()
+    return model
+
+
+def _table_distance(hand, q: np.ndarray, root: np.ndarray, plane: np.ndarray) -> float:
+    """Least python-fcl distance of the hand's links to a table top (a 2 m slab under the plane)."""
+    n, d = plane[:3], plane[3]
+    slab = fcl.Box(2.0, 2.0, 0.2)
+    rot = trimesh.geometry.align_vectors([0, 0, 1.0], n)[:3, :3]
+    centre = -d * n - 0.1 * n
+    table = fcl.CollisionObject(slab, fcl.Transform(rot, centre))
+    poses = hand.link_transforms(q)
+    best = np.inf
+    for link, geoms in hand.collision.items():
+        for geom in geoms:
+            tf = root @ poses[link] @ geom.origin
+            obj = fcl.CollisionObject(_fcl_geometry(geom), fcl.Transform(tf[:3, :3], tf[:3, 3]))
+            result = fcl.DistanceResult()
+            best = min(best, fcl.distance(obj, table, fcl.DistanceRequest(), result))
+    return best
+
+
+def _pad_sphere(hand, finger) -> np.ndarray:
+    """The pad sphere's centre in the pad link's frame, from the exact geometry (trimesh):
+    the pad point moved ``pad_radius`` inward along the face normal nearest to it."""
+    mesh = trimesh.util.concatenate([g.to_trimesh() for g in hand.collision[finger.pad_link]])
+    _, _, face = trimesh.proximity.closest_point(mesh, np.asarray(finger.pad_center, float)[None])
+    return np.asarray(finger.pad_center) - finger.pad_radius * mesh.face_normals[face[0]]
+
+
+def _pad_errors(hand, result, mesh: trimesh.Trimesh) -> list[float]:
+    """|distance of each contact finger's pad sphere centre to the object's surface - pad radius| (m):
+    how far the pad's surface is from the object's."""
+    poses = hand.link_transforms(result.joint_positions)
+    out = []
+    for contact in result.contacts:
+        finger = hand.finger(contact.finger)
+        centre = result.wrist_pose @ poses[finger.pad_link] @ np.append(_pad_sphere(hand, finger), 1.0)
+        _, distance, _ = trimesh.proximity.closest_point(mesh, centre[None, :3])
+        out.append(abs(float(distance[0]) - finger.pad_radius))
+    return out
+
+
+@pytest.fixture(scope="module")
+def plans(hands):
+    out = {}
+    for hand_name in HANDS:
+        for obj_name in OBJECTS:
+            obj = _object(obj_name)
+            table = Scene.table_under(np.asarray(obj.mesh.vertices))
+            for seed in SEEDS:
+                try:
+                    result = plan(obj, options=OPTIONS, rng=np.random.default_rng(seed), hand=hands[hand_name],
+                                  scene=table)
+                except PlanningError as exc:
+                    result = exc
+                out[hand_name, obj_name, seed] = (obj, table, result)
+    return out
+
+
+def test_most_plans_return_a_grasp(plans):
+    returned = {k: not isinstance(v[2], Exception) for k, v in plans.items()}
+    for hand in HANDS:
+        rate = np.mean([ok for k, ok in returned.items() if k[0] == hand])
+        print(f"{hand}: {rate * 100:.0f}% of {len(OBJECTS) * len(SEEDS)} plans returned a grasp")
+    assert np.mean(list(returned.values())) >= 0.75, returned
+
+
+@pytest.mark.parametrize("hand_name", HANDS)
+def test_returned_grasps_are_sound(hands, plans, hand_name):
+    hand = hands[hand_name]
+    checked = 0
+    for (h, obj_name, seed), (obj, table, result) in plans.items():
+        if h != hand_name or isinstance(result, Exception):
+            continue
+        assert result.joint_names == hand.actuated_joints
+        assert result.hand_name == hand.name and result.hand_hash == hand.source_hash
+        assert result.joints.shape == (0, 4, 3)
+        for cand in result.candidates:
+            for q in (cand.joint_positions, cand.pre_grasp_positions, cand.squeeze_positions):
+                assert q.shape == (hand.n_joints,)
+                assert np.all(q >= hand.lower - 1e-9) and np.all(q <= hand.upper + 1e-9), (obj_name, seed)
+        for cand in result.candidates:
+            if cand.valid:
+                assert cand.n_contacts >= 2
+                errors = _pad_errors(hand, cand, obj.mesh)
+                assert max(errors) <= PAD_TOLERANCE, (obj_name, seed, cand.rank, errors)
+        plane = table.planes[0]
+        for cand in result.candidates:
+            assert _table_distance(hand, cand.joint_positions, cand.wrist_pose, plane) >= OPTIONS.clearance - 1e-4, (
+                obj_name, seed, cand.rank)
+            assert _table_distance(hand, cand.pre_grasp_positions, cand.pre_grasp_pose, plane) >= (
+                OPTIONS.clearance - 1e-4), (obj_name, seed, cand.rank, "pre-grasp")
+        checked += 1
+    assert checked >= 1
+
+
+def test_same_seed_same_result(hands, plans):
+    obj, table, first = plans["allegro", "cube", 0]
+    again = plan(obj, options=OPTIONS, rng=np.random.default_rng(0), hand=hands["allegro"], scene=table)
+    assert np.array_equal(first.joint_positions, again.joint_positions)
+    assert np.array_equal(first.wrist_pose, again.wrist_pose)
+    assert [c.fitness for c in first.candidates] == [c.fitness for c in again.candidates]

@@ -1,0 +1,305 @@
+"""The MuJoCo check for any hand (issue 21.3): the Allegro-like URDF and the Shadow MJCF
+compiled from their own files, the root held at the root pose, servos that reach a
+posture, an empty grasp that drops, a power grasp around a ball whose verdict agrees with
+where MuJoCo has the object after each disturbance, the table out of the disturbances.
+
+Independent references: the URDF's own elements (ElementTree) and the MJCF compiled on
+its own by MuJoCo for the geometry; the raw MuJoCo state (``data.xpos``, ``data.qpos``)
+through the observer for the root, the joints and the object.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+from grasp_apso.errors import InputError
+from grasp_apso.model.builtin import builtin
+from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.objects import from_arrays
+from grasp_apso.model.scene import Scene
+from grasp_apso.simulation import SimulationSettings
+from grasp_apso.simulation.any_hand import SimOutcome, prepare_any_hand, simulate_any_hand, squeezed_positions
+from grasp_apso.simulation.any_hand_model import OBJECT_BODY
+from hand_files import installed_hand, write_allegro_like
+
+#: Shorter disturbances for most tests (the full protocol, under 1 s here, runs in one).
+QUICK = SimulationSettings(duration=0.5)
+FAR = np.eye(4)
+FAR[:3, 3] = [5.0, 5.0, 5.0]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("hands")
+    return {"allegro": write_allegro_like(folder / "a", "mixed"),
+            "allegro_coupled": write_allegro_like(folder / "b", "all", coupled=True),
+            "shadow": installed_hand("shadow")}
+
+
+@pytest.fixture(scope="module")
+def hands(files):
+    return {name: load_hand(path, spheres=False) for name, path in files.items()}
+
+
+def _ball(radius: float):
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    return from_arrays(mesh.vertices, mesh.faces, f"ball{radius}")
+
+
+def _rotation(axis, angle: float) -> np.ndarray:
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+ROOT = np.eye(4)
+ROOT[:3, :3] = _rotation((1.0, 2.0, -0.5), 2.1)
+ROOT[:3, 3] = [0.3, -0.2, 0.8]
+
+
+def _power_grasp(hand, radius: float, root_pose: np.ndarray = np.eye(4)):
+    """A ball against the palm, in front of the fingers' bases (the palm surface found by
+    a MuJoCo ray along the palm normal), the fingers closing around it: the object, its
+    pose in the world, and the open / grasp / squeeze postures."""
+    q_open = hand.open_configuration()
+    poses = hand.link_transforms(q_open)
+    normal = np.asarray(hand.palm_normal)
+    bases = np.mean([poses[hand.finger_links(f)[0]][:3, 3] for f in hand.fingers if not f.is_thumb], axis=0)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), q_open)
+    start = bases + 0.15 * normal
+    geom = np.zeros(1, np.int32)
+    distance = mujoco.mj_ray(sc.model, sc.data, start, -normal, None, 1, -1, geom)
+    assert 0 < distance < 0.15 and sc.model.geom_bodyid[geom[0]] == sc.root_body  # the palm itself
+    local = np.eye(4)
+    local[:3, 3] = start - distance * normal + (radius + 0.002) * normal
+    return (_ball(radius), root_pose @ local, q_open, hand.closed_configuration(0.9),
+            hand.closed_configuration(1.0))
+
+
+class Recorder:
+    """Observer: the raw MuJoCo state after each phase and direction."""
+
+    def __init__(self, root_body_name: str):
+        self.root_name = root_body_name
+        self.root: dict[str, np.ndarray] = {}
+        self.object: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, phase, model, data):
+        root = model.body(self.root_name).id
+        pose = np.eye(4)
+        pose[:3, :3] = data.xmat[root].reshape(3, 3)
+        pose[:3, 3] = data.xpos[root]
+        self.root[phase] = pose
+        body = model.body(OBJECT_BODY).id
+        self.object[phase] = (data.xipos[body].copy(), data.xmat[body].reshape(3, 3).copy())
+
+
+def _independent_held(rec: Recorder, obj, obj_pose: np.ndarray, settings: SimulationSettings) -> bool:
+    """Held by where MuJoCo has the object at the end of the squeeze and of every
+    direction: within the shift and turn limits of the planned pose."""
+    planned = obj_pose[:3, :3] @ obj.center_of_mass + obj_pose[:3, 3]
+    for phase in ("squeezed", "+x", "-x", "+y", "-y", "+z", "-z"):
+        if phase not in rec.object:
+            return False
+        pos, rot = rec.object[phase]
+        turn = math.acos(np.clip((np.trace(obj_pose[:3, :3].T @ rot) - 1) / 2, -1.0, 1.0))
+        if np.linalg.norm(pos - planned) >= settings.max_shift or turn >= settings.max_turn:
+            return False
+    return True
+
+
+# ------------------------------------------------------------------------- geometry
+def test_urdf_hand_keeps_its_own_links_and_collisions(hands, files):
+    robot = ET.parse(files["allegro"]).getroot()
+    links = {link.get("name"): len(link.findall("collision")) for link in robot.findall("link")}
+    sc, _ = prepare_any_hand(hands["allegro"], builtin("sphere"), FAR, ROOT, hands["allegro"].open_configuration())
+    m = sc.model
+    bodies = {m.body(b).name for b in range(1, m.nbody)} - {OBJECT_BODY}
+    assert bodies == set(links)
+    for name, count in links.items():
+        assert int(np.sum(m.geom_bodyid == m.body(name).id)) == count, name
+    # A box of the file with its own size: the palm, 0.0408 x 0.113 x 0.095.
+    palm = [g for g in range(m.ngeom) if m.geom_bodyid[g] == m.body("palm").id]
+    np.testing.assert_allclose(m.geom_size[palm[0]], [0.0204, 0.0565, 0.0475], atol=1e-9)
+    assert m.nu == hands["allegro"].n_joints
+
+
+def test_mjcf_hand_keeps_its_own_bodies_geoms_and_tendons(hands, files):
+    ref = mujoco.MjModel.from_xml_path(str(files["shadow"]))
+    hand = hands["shadow"]
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
+    m = sc.model
+
+    def geoms_by_body(model, names):
+        out = {}
+        for g in range(model.ngeom):
+            body = model.body(model.geom_bodyid[g]).name
+            if body in names:
+                out.setdefault(body, []).append((int(model.geom_type[g]), *np.round(model.geom_size[g], 9)))
+        return {k: sorted(v) for k, v in out.items()}
+
+    top = ref.body("robot0:hand mount").id
+    hand_bodies = {ref.body(b).name for b in range(ref.nbody) if ref.body_rootid[b] == top}
+    assert {m.body(b).name for b in range(1, m.nbody)} - {OBJECT_BODY} == hand_bodies
+    assert geoms_by_body(m, hand_bodies) == geoms_by_body(ref, hand_bodies)
+    # The distal couplings (limited fixed tendons) are kept; the wrist's tendons go with the
+    # held wrist joints.
+    ref_tendons = {ref.tendon(t).name for t in range(ref.ntendon)}
+    tendons = {m.tendon(t).name for t in range(m.ntendon)}
+    assert {"robot0:T_FFJ1c", "robot0:T_MFJ1c"} <= tendons <= ref_tendons
+    assert not any("WRJ" in t for t in tendons)
+    assert m.nu == hand.n_joints == 18
+
+
+# ------------------------------------------------------------------------- the root and the servos
+@pytest.mark.parametrize("name", ["allegro", "shadow"])
+def test_root_stays_at_the_root_pose_through_the_protocol(hands, name):
+    hand = hands[name]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    rec = Recorder(hand.root_link)
+    simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, friction=0.5, settings=QUICK, observer=rec)
+    assert {"pre_grasp", "grasp", "squeezed", "+x"} <= set(rec.root)
+    for phase, root in rec.root.items():
+        assert np.linalg.norm(root[:3, 3] - ROOT[:3, 3]) < 1e-3, phase
+        assert np.abs(root[:3, :3] - ROOT[:3, :3]).max() < 1e-3, phase
+    # The compiled model is cached: another root pose moves a copy, not the cached one.
+    other = np.eye(4)
+    other[:3, 3] = [-0.4, 0.1, 0.05]
+    sc, _ = prepare_any_hand(hand, obj, pose, other, q_pre)
+    np.testing.assert_allclose(sc.data.xpos[sc.root_body], other[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(sc.data.xmat[sc.root_body].reshape(3, 3), np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(sc.data.xpos[sc.model.body(OBJECT_BODY).id], pose[:3, 3], atol=1e-9)
+
+
+def test_squeeze_goes_along_the_closing_senses(hands):
+    hand = hands["shadow"]
+    q = hand.closed_configuration(0.5)
+    squeezed = squeezed_positions(hand, q)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            j = hand.actuated_joints.index(joint)
+            expected = np.clip(q[j] + sense * math.radians(8.0), hand.lower[j], hand.upper[j])
+            assert squeezed[j] == pytest.approx(expected), joint
+    assert np.any(squeezed != q)
+
+
+@pytest.mark.parametrize("name", ["allegro_coupled", "shadow"])
+def test_servos_reach_a_commanded_posture(hands, name):
+    hand = hands[name]
+    sc, settings = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
+    target = hand.closed_configuration(0.5)
+    sc.data.ctrl[:] = target
+    mujoco.mj_step(sc.model, sc.data, nstep=int(round(1.0 / settings.timestep)))
+    m = sc.model
+    reached = np.array([sc.data.qpos[m.jnt_qposadr[m.joint(j).id]] for j in hand.actuated_joints])
+    assert np.abs(reached - target).max() < 0.05, dict(zip(hand.actuated_joints, reached - target))
+    # Followers move with their leaders through the file's own couplings: an equality
+    # (URDF mimic) holds, a limited tendon (the Shadow's distal joints) stays in its range.
+    assert hand.couplings
+    for c in hand.couplings:
+        leader = sc.data.qpos[m.jnt_qposadr[m.joint(c.leader).id]]
+        follower = sc.data.qpos[m.jnt_qposadr[m.joint(c.follower).id]]
+        if c.source.startswith("tendon "):
+            t = m.tendon(c.source.split(" ", 1)[1]).id
+            low, high = m.tendon_range[t]
+            assert low - 1e-3 <= sc.data.ten_length[t] <= high + 1e-3, c
+            assert follower > 0.2  # it moved with its leader (0 in the open posture)
+        else:
+            assert abs(follower - (c.multiplier * leader + c.offset)) < 0.02, c
+
+
+# ------------------------------------------------------------------------- verdicts
+@pytest.mark.parametrize("name", ["allegro", "shadow"])
+def test_empty_grasp_drops(hands, name):
+    """The hand closes 20 cm away from the ball: nothing holds it."""
+    hand = hands[name]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    away = pose.copy()
+    away[:3, 3] += 0.2 * (ROOT[:3, :3] @ np.asarray(hand.palm_normal))
+    rec = Recorder(hand.root_link)
+    res = simulate_any_hand(hand, obj, away, ROOT, q_pre, q_grasp, q_squeeze, settings=QUICK, observer=rec)
+    assert isinstance(res, SimOutcome)
+    assert not res.held and not any(h for *_, h in res.per_direction)
+    planned = away[:3, 3]
+    assert np.linalg.norm(rec.object["squeezed"][0] - planned) < 1e-6  # untouched by the closing
+    for d, *_ in res.per_direction:
+        assert np.linalg.norm(rec.object[d][0] - planned) >= 0.05, d
+
+
+def test_table_takes_no_part_in_the_disturbance(hands):
+    """The ball rests on a table far from the hand: the table does not stop a push down."""
+    hand = hands["allegro"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    away = pose.copy()
+    away[:3, 3] += 0.2 * (ROOT[:3, :3] @ np.asarray(hand.palm_normal))
+    table = Scene.table_under(np.asarray(obj.mesh.vertices) @ away[:3, :3].T + away[:3, 3])
+    rec = Recorder(hand.root_link)
+    res = simulate_any_hand(hand, obj, away, ROOT, q_pre, q_grasp, q_squeeze, scene=table, settings=QUICK,
+                            observer=rec)
+    down = dict((d, (s, h)) for d, s, _, h in res.per_direction)["-z"]
+    assert not down[1] and down[0] >= 0.05
+    assert rec.object["-z"][0][2] < away[2, 3] - 0.04  # below the table top
+
+
+@pytest.mark.parametrize("name", ["allegro", "shadow"])
+def test_power_grasp_verdict_matches_the_object_in_mujoco(hands, name):
+    hand = hands[name]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    rec = Recorder(hand.root_link)
+    res = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=QUICK, observer=rec)
+    assert res.held == _independent_held(rec, obj, pose, QUICK), res
+    if name == "shadow":  # the Shadow hand's fingers and thumb cage the ball against its palm
+        assert res.held, res
+
+
+def test_full_protocol_shadow_power_grasp_holds_and_is_deterministic(hands):
+    hand = hands["shadow"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    rec = Recorder(hand.root_link)
+    first = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, observer=rec)
+    second = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze)
+    assert first.held and _independent_held(rec, obj, pose, SimulationSettings()), first
+    assert first.per_direction == second.per_direction
+
+
+def test_quick_check_is_deterministic(hands):
+    hand = hands["allegro"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    settings = replace(QUICK, duration=0.2)
+    a = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings)
+    b = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings)
+    assert a.per_direction == b.per_direction
+
+
+# ------------------------------------------------------------------------- inputs
+def test_bad_inputs_name_the_field(hands):
+    hand = hands["allegro"]
+    q = hand.open_configuration()
+    obj = builtin("sphere")
+    with pytest.raises(InputError, match="q_grasp"):
+        simulate_any_hand(hand, obj, FAR, ROOT, q, q[:-1], q)
+    bad = q.copy()
+    bad[1] = hand.upper[1] + 0.5
+    with pytest.raises(InputError, match=f"q_pre: {hand.actuated_joints[1]}"):
+        simulate_any_hand(hand, obj, FAR, ROOT, bad, q, q)
+    with pytest.raises(InputError, match="root_pose"):
+        simulate_any_hand(hand, obj, FAR, np.eye(3), q, q, q)
+    with pytest.raises(InputError, match="obj"):
+        simulate_any_hand(hand, "sphere", FAR, ROOT, q, q, q)
+    with pytest.raises(InputError, match="friction"):
+        simulate_any_hand(hand, obj, FAR, ROOT, q, q, q, friction=-1.0)
+    from grasp_apso.model.hand import load_hand as load_paper_hand
+
+    with pytest.raises(InputError, match="hand"):
+        simulate_any_hand(load_paper_hand(), obj, FAR, ROOT, q, q, q)
+    from grasp_apso.errors import TimeoutExceeded
+
+    with pytest.raises(TimeoutExceeded):
+        simulate_any_hand(hand, obj, FAR, ROOT, q, q, q, should_stop=lambda: True)
