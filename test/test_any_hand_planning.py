@@ -167,3 +167,27 @@ def test_same_seed_same_result(hands, plans):
     assert np.array_equal(first.joint_positions, again.joint_positions)
     assert np.array_equal(first.wrist_pose, again.wrist_pose)
     assert [c.fitness for c in first.candidates] == [c.fitness for c in again.candidates]
+
+
+def test_simulate_ranks_held_grasps_first(hands):
+    """With ``simulate`` every candidate of a general hand is checked in MuJoCo (SIM's
+    simulate_any_hand) and the held ones rank first."""
+    obj = builtin("cube")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    options = PlanOptions(particles=30, iterations=20, max_grasps=2, simulate=True)
+    result = plan(obj, options=options, rng=np.random.default_rng(0), hand=hands["inspire"], scene=table)
+    sims = [c.sim_result for c in result.candidates]
+    assert all(s in (0, 1) for s in sims), sims
+    assert sims == sorted(sims, reverse=True)
+    assert all(np.isfinite(c.sim_max_shift) for c in result.candidates)
+
+
+def test_paper_hand_result_names_its_hand():
+    import hashlib
+
+    from grasp_apso.model.hand import default_hand_path
+
+    result = plan(builtin("cube"), options=PlanOptions(particles=8, iterations=2, neighborhood_size=4),
+                  rng=np.random.default_rng(0))
+    assert result.hand_name == "apso_paper_hand"
+    assert result.hand_hash == hashlib.sha256(default_hand_path().read_bytes()).hexdigest()

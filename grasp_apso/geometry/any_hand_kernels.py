@@ -159,6 +159,8 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
             d = min(d + K[_PADS][f], _pad(values, origin, spacing, rot, trans, poses, f, K, c))
         link_out[l] = d
         best = min(best, d)
+        if moving_only and best <= 0.0:  # the sweep needs only the first touch
+            return best
     return best
 
 
@@ -187,7 +189,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
 
     Each joint of finger f with a closing limit moves ``q0 + s (limit - q0)``; ``s`` is the
     first sample of ``coarse`` steps at which a sphere of the finger meets the surface
-    (clearance <= 0), refined by ``refine`` bisections to the last free ``s`` (1 when nothing
+    (clearance <= 0; these steps cull at 0: only the sign matters), refined by ``refine`` bisections to the last free ``s`` (1 when nothing
     is met). Writes q_out (P, n) closed, s_out (P, F), start_clear (P, F) the finger's
     clearance at its pre-shape, stopped (P, F) bool something met, link_clear (P, F, Lmax)
     per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance.
@@ -221,7 +223,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     sk = k / coarse
                     _set_closing(q, q0[p], f, K, sk)
                     finger_poses(q, f, K, poses, tmp, local)
-                    if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c,
+                    if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc, c,
                                                     True)) <= 0.0:
                         hi = sk
                         break
@@ -234,7 +236,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                         mid = 0.5 * (lo + hi)
                         _set_closing(q, q0[p], f, K, mid)
                         finger_poses(q, f, K, poses, tmp, local)
-                        if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc,
+                        if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc,
                                                         c, True)) <= 0.0:
                             hi = mid
                         else:

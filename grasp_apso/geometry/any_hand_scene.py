@@ -22,8 +22,9 @@ __all__ = ["scene_margins", "APPROACH_FRACTIONS"]
 
 #: Where along the approach the open hand is checked (0 = at the grasp pose).
 APPROACH_FRACTIONS = (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0)
-#: Margins above this (m) are lower bounds (culled).
-SCENE_CUTOFF = 0.005
+#: Margins above this (m, past the clearance) are lower bounds (culled): legality needs
+#: only the sign, the fitness's guide only the depth inside the clearance.
+SCENE_CUTOFF = 0.0
 
 _jit = numba.njit(cache=True, nogil=True)
 

@@ -27,7 +27,7 @@ from .grg import classify_shape
 from .options import PlanOptions
 from .swarm import IterationStats, run_swarm
 
-__all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand"]
+__all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_hand"]
 
 #: As the paper path (search.planner): archive size over max_grasps, the scene guide (m).
 ARCHIVE_FACTOR = 4
@@ -108,3 +108,22 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
     checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene)
     return build_result(model, checked, message, swarm, problem, options, pose, shape, preparation, t1, obj,
                         scene, should_stop)
+
+
+def warm_up_any_hand(hand) -> float:
+    """Load (or, once after an install, compile: about 20 s) the general hand's kernels and
+    build the hand's tables before its first plan: a tiny plan of the built-in cube on a
+    table. The node calls it for a configured general hand as it calls
+    :func:`grasp_apso.search.planner.warm_up` for the paper hand. Returns the seconds it took."""
+    from ..model.builtin import builtin
+    from ..model.scene import Scene
+
+    t0 = time.perf_counter()
+    cube = builtin("cube")
+    table = Scene.table_under(np.asarray(cube.mesh.vertices))
+    options = PlanOptions(particles=4, iterations=1, neighborhood_size=2, max_grasps=1)
+    try:
+        plan_any_hand(cube, np.eye(4), options, np.random.default_rng(0), hand, None, None, table, table)
+    except PlanningError:
+        pass  # the kernels ran; a tiny swarm may find no grasp
+    return time.perf_counter() - t0

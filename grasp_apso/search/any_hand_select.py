@@ -78,7 +78,7 @@ def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, f
             scene_clear = scene_clear and distance >= options.clearance and not path.hits_object
     else:
         note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
-    return AnyChecked(decoded, float(fitness), float(eps), bool(closure), legal and mask.sum() >= 2,
+    return AnyChecked(decoded, float(fitness), float(eps), bool(closure), bool(legal and mask.sum() >= 2),
                       scene_clear, distance, report, note)
 
 
