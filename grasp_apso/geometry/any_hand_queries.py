@@ -19,7 +19,7 @@ import numpy as np
 from ..cache import PerThreadCache
 from ..model.hands.geometry import LinkGeometry
 from ..model.scene import BOX, SPHERE, Obstacle
-from .any_hand_shapes import TOUCH_EPS, HandShapes, ObjectShape, local_samples
+from .any_hand_shapes import EXACT_WITHIN, TOUCH_EPS, HandShapes, ObjectShape, local_samples
 from .collision import segment_distances
 
 __all__ = ["fcl_distance", "to_frame", "from_frame", "solid_pair", "part_pair_distances", "object_distances",
@@ -112,29 +112,41 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     """Signed distance (m) of each part of ``parts`` (placed in ``objs``) to the object.
 
     ``object_pose`` (4, 4): the object frame in the query frame (None: the same frame).
-    fcl measures each part; a sphere is measured by the mesh's exact signed distance at its
-    centre. fcl finds a part wholly inside the object (a hollow surface to fcl) apart, and
-    one that holds the object wholly: one sample point and one object vertex decide, in
-    one batch; touching parts then get their depth from their samples."""
+    fcl measures each part (a convex object first as a solid fcl.Convex, within
+    :data:`.any_hand_shapes.EXACT_WITHIN` again on the BVH); against a non-convex
+    mesh a sphere is measured by the mesh's exact signed distance at its centre, and fcl
+    finds a part wholly inside the object (a hollow surface to fcl) apart: one sample point
+    per part decides, in one batch. A mesh part holding the object wholly: one object
+    vertex decides. Touching parts then get their depth from their samples."""
     parts = np.asarray(parts, dtype=np.int64)
     out = np.empty(len(parts))
     if len(parts) == 0:
         return out
-    target = shape.collision_object()
+    target, hull = shape.collision_objects()
     pose = np.eye(4) if object_pose is None else object_pose
-    target.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
-    first = np.array([to_frame(poses[k], shapes.samples[k][0][:1])[0] for k in parts])
+    for o in (target, hull):
+        if o is not None:
+            o.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
     inflate = np.array([shapes.samples[k][1] for k in parts])
-    first_sdf = shape.distance(from_frame(pose, first)) - inflate
-    sphere = np.array([shapes.geoms[k].kind == "sphere" for k in parts], dtype=bool)
-    out[sphere] = first_sdf[sphere]  # exact
+    if shape.convex:  # a solid to fcl: contact is overlap, no part hides inside it
+        sphere = np.zeros(len(parts), dtype=bool)
+        first_sdf = np.zeros(len(parts))
+    else:
+        first = np.array([to_frame(poses[k], shapes.samples[k][0][:1])[0] for k in parts])
+        first_sdf = shape.distance(from_frame(pose, first)) - inflate
+        sphere = np.array([shapes.geoms[k].kind == "sphere" for k in parts], dtype=bool)
+        out[sphere] = first_sdf[sphere]  # exact
     for i in np.flatnonzero(~sphere):
+        if hull is not None:
+            out[i] = fcl_distance(objs[parts[i]], hull)
+            if out[i] >= EXACT_WITHIN or out[i] <= TOUCH_EPS:  # far, or overlapping the solid
+                continue
         out[i] = fcl_distance(objs[parts[i]], target)
     deep = ~sphere & ((out <= TOUCH_EPS) | (first_sdf < 0.0))
     vertex = to_frame(pose, shape.vertices[:1])[0]
     centre = np.einsum("kij,kj->ki", poses[parts, :3, :3], shapes.bound_centre[parts]) + poses[parts, :3, 3]
-    holds = np.linalg.norm(centre - vertex, axis=1) <= shapes.bound_radius[parts]
-    for i in np.flatnonzero(holds & ~deep & (out > 0.0)):
+    holds = (np.linalg.norm(centre - vertex, axis=1) <= shapes.bound_radius[parts]) & ~shapes.primitive[parts]
+    for i in np.flatnonzero(holds & ~deep & (out > 0.0)):  # a (hollow) mesh part around the object?
         k = parts[i]
         deep[i] = _sdf(shapes.geoms[k], poses[k], vertex[None])[0] < 0.0
     ball = (to_frame(pose, shape.centre[None])[0], shape.radius)
