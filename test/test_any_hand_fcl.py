@@ -355,3 +355,42 @@ def test_bad_input_names_the_field(hands):
     with pytest.raises(InputError) as err:
         scene_distance(hc, np.full_like(q, np.nan), np.eye(4), Scene())
     assert err.value.field == "q"
+
+
+def test_a_non_convex_object_ring_over_its_top_and_inside_its_hole(hands):
+    """A ring (annulus): the hand above its top face reports the gap; the hand inside the
+    hole (inside the hull, outside the solid) reports its distance to the inner wall."""
+    hand = hands["allegro"]
+    hc = HandCollision(hand)
+    rng = np.random.default_rng(4)
+    q = hand.open_configuration()
+    root = np.eye(4)
+    root[:3, :3] = _rotation(rng)
+    meshes = _link_meshes(hand, q, root)
+    ring = trimesh.creation.annulus(r_min=0.25, r_max=0.7, height=0.4, sections=512)  # top face z = 0.2
+    # over the top face, 4 mm up, the hand centred over the ring's middle radius
+    lowest = {lk: float(m.vertices[:, 2].min()) for lk, m in meshes.items()}
+    placed = root.copy()
+    placed[:3, 3] += [0.475, 0.0, 0.2 + 0.004 - min(lowest.values())]
+    report = object_report(hc, q, placed, ring)
+    for lk, z in lowest.items():
+        expected = z + placed[2, 3] - 0.2
+        assert report.distance_of(lk) == pytest.approx(expected, abs=TOL if expected < 0.01 else 1e-3), lk
+    # in the hole: distance to the inner wall = 0.25 - the link's largest radius
+    report = object_report(hc, q, root, ring)
+    for lk, m in meshes.items():
+        assert np.abs(m.vertices[:, 2]).max() < 0.19  # within the ring's height
+        expected = 0.25 - float(np.hypot(m.vertices[:, 0], m.vertices[:, 1]).max())
+        assert expected > 0.05
+        # inside the hull: measured exactly on the mesh (fcl alone would call it apart)
+        assert report.distance_of(lk) == pytest.approx(expected, abs=TOL), lk
+    # half out of the hole: beyond exact_within a link reports the hull's lower bound;
+    # exact_within=inf measures every link exactly (never less than the bound)
+    placed = root.copy()
+    placed[2, 3] = 0.15
+    bounded = object_report(hc, q, placed, ring)
+    exact = object_report(hc, q, placed, ring, exact_within=np.inf)
+    assert np.all(bounded.link_distance <= exact.link_distance + 1e-9)
+    near = exact.link_distance < 0.01
+    np.testing.assert_allclose(bounded.link_distance[near], exact.link_distance[near], atol=1e-9)
+    assert np.any(bounded.link_distance < exact.link_distance - 0.05)  # links above the top: bounds

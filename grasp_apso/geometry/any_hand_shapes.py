@@ -54,7 +54,7 @@ SAMPLE_SPACING = 0.0025
 MAX_SAMPLES = 3000
 #: An fcl distance at most this (m) is a contact (fcl answers 0, -1 or ~1e-300 then).
 TOUCH_EPS = 1e-9
-#: Against a convex object, GJK distances under this (m) are measured again exactly (BVH).
+#: GJK distances to an object's hull under this (m) are measured again exactly (BVH).
 EXACT_WITHIN = 0.01
 _PRIMITIVES = ("box", "sphere", "cylinder", "capsule")
 
@@ -247,18 +247,17 @@ class ObjectShape:
     """An object mesh for the exact checks: ``bvh`` (object frame), ``distance`` (its exact
     signed distance, :class:`MeshDistance`, negative inside), ``vertices`` (V, 3).
 
-    A convex mesh is measured first as an ``fcl.Convex`` (``hull``: a solid, GJK, some 20
-    times quicker than the BVH but off by up to ~0.4 mm); parts it finds within
-    :data:`EXACT_WITHIN` are measured again on the BVH. ``convex`` says so."""
+    ``hull``: the convex hull as an ``fcl.Convex`` (a solid; GJK, some 20 times quicker
+    than the BVH, off by up to ~0.4 mm); parts it finds within :data:`EXACT_WITHIN` are
+    measured again exactly. ``convex``: the mesh is its own hull."""
 
     def __init__(self, mesh: trimesh.Trimesh, bvh: fcl.BVHModel | None = None):
         self.mesh = mesh
         self.vertices = np.asarray(mesh.vertices, dtype=float)
         self.convex = bool(mesh.is_watertight and mesh.is_convex)
-        self.hull = None
-        if self.convex:
-            faces = np.column_stack([np.full(len(mesh.faces), 3), mesh.faces]).ravel().astype(np.int32)
-            self.hull = fcl.Convex(self.vertices, len(mesh.faces), faces)
+        hull = mesh if self.convex else mesh.convex_hull
+        faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel().astype(np.int32)
+        self.hull = fcl.Convex(np.asarray(hull.vertices, dtype=float), len(hull.faces), faces)
         self.bvh = mesh_bvh(mesh) if bvh is None else bvh
         self.distance = MeshDistance(mesh)
         self.bounds = np.asarray(mesh.bounds, dtype=float)
@@ -267,11 +266,10 @@ class ObjectShape:
         self.radius = float(np.linalg.norm(self.vertices - self.centre, axis=1).max())
         self.nbytes = (BVH_BYTES_PER_TRIANGLE + 400) * len(mesh.faces) + 48 * len(mesh.vertices)
 
-    def collision_objects(self) -> tuple[fcl.CollisionObject, fcl.CollisionObject | None]:
-        """This thread's fcl objects of the BVH and of the Convex (None unless convex),
-        moved with setTransform."""
-        return _OBJECT_OBJECTS.get(self, lambda s: (fcl.CollisionObject(s.bvh, fcl.Transform()), None if s.hull is None
-                                                    else fcl.CollisionObject(s.hull, fcl.Transform())))
+    def collision_objects(self) -> tuple[fcl.CollisionObject, fcl.CollisionObject]:
+        """This thread's fcl objects of the BVH and of the hull, moved with setTransform."""
+        return _OBJECT_OBJECTS.get(self, lambda s: (fcl.CollisionObject(s.bvh, fcl.Transform()),
+                                                    fcl.CollisionObject(s.hull, fcl.Transform())))
 
 
 _OBJECT_OBJECTS: "PerThreadCache[tuple]" = PerThreadCache(max_entries=8)
