@@ -394,3 +394,18 @@ def test_a_non_convex_object_ring_over_its_top_and_inside_its_hole(hands):
     near = exact.link_distance < 0.01
     np.testing.assert_allclose(bounded.link_distance[near], exact.link_distance[near], atol=1e-9)
     assert np.any(bounded.link_distance < exact.link_distance - 0.05)  # links above the top: bounds
+
+
+def test_a_grasp_object_is_measured_as_its_mesh(hands):
+    from grasp_apso.model.objects import from_arrays
+
+    hand = hands["allegro"]
+    box = trimesh.creation.box(extents=(0.06, 0.05, 0.08))
+    obj = from_arrays(box.vertices, box.faces, name="box")
+    root = np.eye(4)
+    root[:3, 3] = [0.0, 0.0, 0.09]
+    q = hand.closed_configuration(0.5)
+    a = object_report(hand, q, root, obj)
+    b = object_report(hand, q, root, obj.mesh.copy())
+    np.testing.assert_allclose(a.link_distance, b.link_distance, atol=1e-9)
+    assert np.any(a.link_distance < 0.01)  # the posture reaches the box

@@ -277,8 +277,8 @@ _OBJECT_OBJECTS: "PerThreadCache[tuple]" = PerThreadCache(max_entries=8)
 
 def object_shape(obj, field: str = "obj") -> ObjectShape:
     """An :class:`ObjectShape` of ``obj``: a GraspObject (cached by its mesh hash, its BVH
-    shared with :func:`.collision.object_bvh`), a closed ``trimesh.Trimesh`` (built each
-    call: cache the result) or an ObjectShape (returned).
+    shared with :func:`.collision.object_bvh`), a closed ``trimesh.Trimesh`` (cached by the
+    sha256 of its arrays) or an ObjectShape (returned).
 
     A bare ``fcl.BVHModel`` is refused: fcl cannot tell how deep a link is inside it."""
     if isinstance(obj, ObjectShape):
@@ -286,7 +286,9 @@ def object_shape(obj, field: str = "obj") -> ObjectShape:
     if isinstance(obj, trimesh.Trimesh):
         if len(obj.faces) == 0:
             raise InputError(f"{field}: the mesh has no faces", field)
-        return ObjectShape(obj)
+        key = hashlib.sha256(np.ascontiguousarray(obj.vertices, dtype=np.float64).tobytes()
+                             + np.ascontiguousarray(obj.faces, dtype=np.int64).tobytes()).hexdigest()
+        return cached("object_distance", ("trimesh", key), lambda: ObjectShape(obj), nbytes=lambda s: s.nbytes)
     if hasattr(obj, "mesh") and hasattr(obj, "mesh_hash"):
         return cached("object_distance", obj.mesh_hash, lambda: ObjectShape(obj.mesh, object_bvh(obj)),
                       nbytes=lambda s: s.nbytes)
