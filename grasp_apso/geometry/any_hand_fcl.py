@@ -22,6 +22,13 @@ or a BVH, built once per hand, per-thread collision objects), placed by
 
 Frames: ``q`` (n,) over ``hand.actuated_joints``; a root pose (4, 4) is the root link's
 frame in the frame of the object (:func:`object_report`) or the scene. Units: m, rad.
+
+Measured (``bench/bench_any_hand_fcl.py``; Shadow hand, 22 parts with its forearm mesh; best
+of 5 on a shared 2-core machine): :func:`object_report` 1.7-3.2 ms with an 8 cm ball 1 cm
+from the palm, 5.3 ms with links pressing 0.5 mm into it, 4.6 / 9.3 ms against the
+non-convex mug (2,838 triangles) 1 cm off / in contact; :func:`scene_distance` 0.8 ms
+against a table (the forward kinematics alone 0.5-0.8 ms); :func:`approach_report` over 8 cm
+(17 poses) 14 / 18 ms with a table and the ball / the mug.
 """
 
 from __future__ import annotations
