@@ -22,6 +22,13 @@ or a BVH, built once per hand, per-thread collision objects), placed by
 
 Frames: ``q`` (n,) over ``hand.actuated_joints``; a root pose (4, 4) is the root link's
 frame in the frame of the object (:func:`object_report`) or the scene. Units: m, rad.
+
+Measured (``bench/bench_any_hand_fcl.py``; Shadow hand, 22 parts with its forearm mesh; best
+of 5 on a shared 2-core machine): :func:`object_report` 1.7-3.2 ms with an 8 cm ball 1 cm
+from the palm, 5.3 ms with links pressing 0.5 mm into it, 4.6 / 9.3 ms against the
+non-convex mug (2,838 triangles) 1 cm off / in contact; :func:`scene_distance` 0.8 ms
+against a table (the forward kinematics alone 0.5-0.8 ms); :func:`approach_report` over 8 cm
+(17 poses) 14 / 18 ms with a table and the ball / the mug.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from ..errors import InputError
 from ..model.hands.model import HandModel
 from ..model.scene import Scene
 from .any_hand_queries import object_distances, obstacle_distances, part_pair_distances, plane_distances
-from .any_hand_shapes import HandShapes, hand_shapes, object_shape
+from .any_hand_shapes import EXACT_WITHIN, HandShapes, hand_shapes, object_shape
 # The scene's fcl objects, the pose/number validation and the approach tolerances are the paper hand's (one source of truth).
 from .hand_fcl import CONTACT_ZONE, MAX_STEPS, OBJECT_TOLERANCE, _nonnegative, _pose, _scene_geometry
 
@@ -132,7 +139,9 @@ class AnyHandReport:
         The hand's links with collision geometry (rows of the arrays).
     link_distance : (Lg,) float, m
         Signed distance of each link to the object: the gap, or minus the depth of its
-        deepest point inside (penetration).
+        deepest point inside (penetration). Exact below ``exact_within``; at or beyond it,
+        a lower bound (the distance to the object's convex hull, GJK: for a convex object
+        within ~0.4 mm, for a non-convex one possibly much less than the true gap).
     touching : (Lg,) bool
         ``link_distance <= tolerance``.
     deepest_penetration : float, m, >= 0
@@ -145,6 +154,7 @@ class AnyHandReport:
     finger_pairs_colliding : tuple of (str, str)
         The finger names of the pairs of different fingers among them.
     tolerance : float, m
+    exact_within : float, m
     """
 
     links: tuple[str, ...]
@@ -155,6 +165,7 @@ class AnyHandReport:
     link_pairs_colliding: tuple[tuple[str, str], ...]
     finger_pairs_colliding: tuple[tuple[str, str], ...]
     tolerance: float
+    exact_within: float = EXACT_WITHIN
 
     @property
     def legal(self) -> bool:
@@ -191,7 +202,8 @@ def self_collisions(hc: HandCollision, poses: np.ndarray, allowed_overlap: float
 
 
 def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: np.ndarray, obj,
-                  tolerance: float = TOUCH_TOLERANCE, allowed_overlap: float = ALLOWED_OVERLAP) -> AnyHandReport:
+                  tolerance: float = TOUCH_TOLERANCE, allowed_overlap: float = ALLOWED_OVERLAP,
+                  exact_within: float = EXACT_WITHIN) -> AnyHandReport:
     """The hand at ``q`` against the object and itself (python-fcl, exact geometry).
 
     Parameters
@@ -206,6 +218,9 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     tolerance : float, m, >= 0
         A link within it touches; a deeper penetration is illegal.
     allowed_overlap : float, m, >= 0
+    exact_within : float, m, >= ``tolerance``
+        Links nearer the object's convex hull than this are measured exactly (``inf``:
+        every link, at the cost of a BVH query each).
 
     Raises
     ------
@@ -216,10 +231,13 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     root = _pose(root_in_object, "root_in_object")
     tol = _nonnegative(tolerance, "tolerance")
     overlap = _nonnegative(allowed_overlap, "allowed_overlap")
+    exact = float(exact_within) if exact_within == math.inf else _nonnegative(exact_within, "exact_within")
+    if exact < tol:
+        raise InputError(f"exact_within: {exact} m is below tolerance {tol} m", "exact_within")
     shape = object_shape(obj)
     poses = hc.part_poses(q, root)
     objs = hc.place(poses)
-    dist = _link_min(hc, object_distances(hc.shapes, objs, poses, np.arange(len(objs)), shape, None))
+    dist = _link_min(hc, object_distances(hc.shapes, objs, poses, np.arange(len(objs)), shape, None, exact))
     worst = int(np.argmin(dist))
     pairs = self_collisions(hc, poses, overlap)
     names = [f.name for f in hc.hand.fingers]
@@ -234,7 +252,8 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     touching.flags.writeable = False
     return AnyHandReport(links=hc.links, link_distance=dist, touching=touching,
                          deepest_penetration=float(max(0.0, -dist[worst])), deepest_link=hc.links[worst],
-                         link_pairs_colliding=pairs, finger_pairs_colliding=tuple(finger_pairs), tolerance=tol)
+                         link_pairs_colliding=pairs, finger_pairs_colliding=tuple(finger_pairs), tolerance=tol,
+                         exact_within=exact)
 
 
 # ------------------------------------------------------------------ scene
