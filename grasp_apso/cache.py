@@ -198,7 +198,9 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "normal_spread": CacheLimit(8, 256 * _MB),   # geometry.normal_spread: (mesh hash, options, radius)
     "mesh_bvh": CacheLimit(8, 128 * _MB),        # geometry.collision: mesh hash
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
-    "hand_model": CacheLimit(16, 1024 * _MB),    # model.hands.load: (description + config hash, folder, ...)
+    "hand_model": CacheLimit(16, 1024 * _MB),
+    "hand_tables": CacheLimit(16, 256 * _MB),    # geometry.any_hand_tables: hand source hash
+    "hand_drawing": CacheLimit(8, 200 * _MB),    # presentation.hand_geometry: (hand, decimation)    # model.hands.load: (description + config hash, folder, ...)
     "hand_collision": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: (hand source hash, geometry digest)
     "object_distance": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)
     "sim_model": CacheLimit(8, 256 * _MB),       # simulation.any_hand_model: (mesh hash, hand, scene, settings)

@@ -23,13 +23,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cache import BoundedCache
+from ..cache import cached
 from ..errors import HandDescriptionError
 
 __all__ = ["ParticleLayout", "HandTables", "hand_tables", "GROUP_SIZE"]
 
 #: Spheres per bounding group (culling unit of the look-ups).
 GROUP_SIZE = 12
+#: Spheres per link the compiled search reads (:func:`search_spheres`).
+SEARCH_SPHERES = 64
 #: Wrist angle bounds (rad): theta_x, theta_y, theta_z (the paper hand's, ``model.hand``).
 WRIST_LOWER = np.array([-np.pi, -np.pi / 2, -np.pi])
 WRIST_UPPER = np.array([np.pi, np.pi / 2, np.pi])
@@ -38,7 +40,6 @@ WRIST_UPPER = np.array([np.pi, np.pi / 2, np.pi])
 REACH_FRACTION = 1.0
 STANDOFF_MIN, STANDOFF_MAX = 0.03, 0.12
 
-_CACHE: BoundedCache = BoundedCache(max_entries=16, max_bytes=256 * 1024 * 1024)
 
 
 @dataclass(frozen=True)
@@ -133,12 +134,22 @@ class HandTables:
 def hand_tables(hand) -> HandTables:
     """The tables of ``hand`` (a :class:`grasp_apso.model.hands.HandModel`), cached by its
     ``source_hash``."""
-    return _CACHE.get_or_create(("tables", hand.source_hash), lambda: _build(hand))
+    return cached("hand_tables", hand.source_hash, lambda: _build(hand))
 
 
-def _groups(cover) -> list[np.ndarray]:
+def search_spheres(cover) -> tuple[np.ndarray, np.ndarray]:
+    """The spheres of a link's cover the compiled search reads: the first
+    :data:`SEARCH_SPHERES` (``cover_link`` picks greedily, so they are the ones that cover
+    most). A complete cover of a palm with fine detail holds thousands at 2 mm; the search
+    needs the link's bulk, and the exact geometry (python-fcl) decides at the end.
+    Returns centres (k, 3) link frame m and radii (k,) m."""
+    k = min(len(cover.radii), SEARCH_SPHERES)
+    return np.asarray(cover.centers, float)[:k], np.asarray(cover.radii, float)[:k]
+
+
+def _groups(centers: np.ndarray) -> list[np.ndarray]:
     """Sphere index groups of a link's cover: sorted along the principal axis, chunked."""
-    c = np.asarray(cover.centers, float)
+    c = centers
     if len(c) <= GROUP_SIZE:
         return [np.arange(len(c))]
     axis = np.linalg.svd(c - c.mean(0), full_matrices=False)[2][0]
@@ -173,8 +184,8 @@ def _build(hand) -> HandTables:
         first = len(grp_start)
         if cover is None or len(cover.radii) == 0:
             return first, 0
-        centers, radii = np.asarray(cover.centers, float), np.asarray(cover.radii, float)
-        for idx in _groups(cover):
+        centers, radii = search_spheres(cover)
+        for idx in _groups(centers):
             c = centers[idx]
             mid = 0.5 * (c.min(0) + c.max(0))
             grp_start.append(len(sph_r))
@@ -308,9 +319,10 @@ def _overlap_pairs(hand, finger_links, rest: np.ndarray) -> np.ndarray:
                         continue
                     pa = rest[hand.link_index(a)]
                     pb = rest[hand.link_index(b)]
-                    wa = np.asarray(ca.centers) @ pa[:3, :3].T + pa[:3, 3]
-                    wb = np.asarray(cb.centers) @ pb[:3, :3].T + pb[:3, 3]
-                    gap = np.linalg.norm(wa[:, None] - wb[None], axis=2) - np.add.outer(ca.radii, cb.radii)
+                    (a_c, a_r), (b_c, b_r) = search_spheres(ca), search_spheres(cb)
+                    wa = a_c @ pa[:3, :3].T + pa[:3, 3]
+                    wb = b_c @ pb[:3, :3].T + pb[:3, 3]
+                    gap = np.linalg.norm(wa[:, None] - wb[None], axis=2) - np.add.outer(a_r, b_r)
                     if gap.min() > 0.0:
                         out.append((f1, l1, f2, l2))
     return np.array(out, dtype=np.int64).reshape(-1, 4)

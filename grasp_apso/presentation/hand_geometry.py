@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cache import BoundedCache, approximate_nbytes
+from ..cache import cached
 from .palette import FINGER_COLORS, PALM_COLOR
 
 __all__ = ["MAX_DRAWN_TRIANGLES", "EXTRA_FINGER_COLORS", "decimate_for_drawing", "finger_color", "hand_triangles",
@@ -112,7 +112,6 @@ def link_colors(hand: Any) -> dict[str, str]:
     return {link: colors.get(link, PALM_COLOR) for link in hand.collision}
 
 
-_LINK_MESHES: BoundedCache[dict] = BoundedCache(max_entries=8, max_bytes=200_000_000, size_of=approximate_nbytes)
 
 
 def link_meshes(hand: Any, max_triangles: int = MAX_DRAWN_TRIANGLES) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -142,7 +141,7 @@ def link_meshes(hand: Any, max_triangles: int = MAX_DRAWN_TRIANGLES) -> dict[str
             out[link] = decimate_for_drawing(v, f, budget)
         return out
 
-    return _LINK_MESHES.get_or_create(key, build)
+    return cached("hand_drawing", key, build)
 
 
 def hand_triangles(hand: Any, q: np.ndarray, root_pose: np.ndarray,

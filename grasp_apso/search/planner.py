@@ -10,8 +10,6 @@ collision checks of the links against the mesh and between fingers
 
 from __future__ import annotations
 
-import functools
-import hashlib
 import time
 from dataclasses import replace
 from typing import Callable
@@ -26,6 +24,7 @@ from ..geometry.decoder import (
     with_scene,
 )
 from ..model.builtin import builtin
+from ..model.planning_hand import paper_hand_hash
 from ..model.hands.model import HandModel as AnyHand
 from ..model.hand import JOINT_NAMES, HandModel, load_hand
 from ..model.particle import LAYOUT
@@ -237,15 +236,7 @@ def plan(
     if sim_note:  # candidates not simulated (sim_result -1) or simulated on a coarser shape: why
         message = (message + "; " if message else "") + sim_note
     result = _result(top, candidates, message, runner_up, swarm, problem, options, pose, shape, preparation, t1)
-    return replace(result, hand_hash=_shipped_hand_hash()) if hand is None else result
-
-
-@functools.lru_cache(maxsize=1)
-def _shipped_hand_hash() -> str:
-    """sha256 of the shipped paper hand's YAML (``GraspResult.hand_hash`` of its plans)."""
-    from ..model.hand import default_hand_path
-
-    return hashlib.sha256(default_hand_path().read_bytes()).hexdigest()
+    return replace(result, hand_hash=paper_hand_hash()) if hand is None else result
 
 
 def _scene_in_object_frame(obj, pose: np.ndarray, scene) -> Scene | None:
