@@ -188,11 +188,12 @@ def _link_min(hc: HandCollision, part_values: np.ndarray) -> np.ndarray:
 def self_collisions(hc: HandCollision, poses: np.ndarray, allowed_overlap: float = ALLOWED_OVERLAP
                     ) -> tuple[tuple[str, str], ...]:
     """Link pairs (names) of :meth:`HandCollision.checked_pairs` overlapping by more than
-    ``allowed_overlap`` (m) at part ``poses`` (K, 4, 4), placed in this thread's objects."""
+    ``allowed_overlap`` (m) at part ``poses`` (K, 4, 4) (from :meth:`HandCollision.part_poses`)."""
     a, b = hc.checked_pairs()
     if len(a) == 0:
         return ()
-    d = part_pair_distances(hc.shapes, hc.shapes.objects(), poses, a, b, -allowed_overlap)
+    parts = np.union1d(a, b)
+    d = part_pair_distances(hc.shapes, hc.place(poses, parts), poses, a, b, -allowed_overlap)
     pairs: list[tuple[str, str]] = []
     for i in np.flatnonzero(d < -allowed_overlap):
         key = (hc.links[hc.shapes.part_link[a[i]]], hc.links[hc.shapes.part_link[b[i]]])
