@@ -79,7 +79,7 @@ class GraspPlannerNode(Node):
         self.parameters = NodeParameters(self)  # raises for an invalid start-up value
         settings = self.parameters.settings
         self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
-                             database=self.parameters.database, cache_directory=settings["cache_directory"])
+                             database=self.parameters.database, hand=self.parameters.planning_hand.hand)
         self._goals: dict[bytes, Job] = {}
         self._absent: dict[RequestKind, int] = {kind: 0 for kind in RequestKind}
         self.get_logger().info("loading the planner's compiled kernels ...")

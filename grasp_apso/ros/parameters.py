@@ -32,6 +32,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 
 from ..errors import GraspApsoError, InputError
+from ..cache import set_cache_root
 from ..model.planning_hand import is_general_hand, load_planning_hand
 from ..search.options import PlanOptions
 from ..tunables import Tunable, ros_tunables
@@ -122,6 +123,9 @@ class NodeParameters:
         allowed = str(values["allowed_mesh_dir"])
         if allowed and not os.path.isdir(allowed):
             raise InputError("allowed_mesh_dir: not a directory", "allowed_mesh_dir")
+        # The disk caches (convex decompositions, the hand's sphere covers) of this node: set
+        # before the hand is loaded, which may write its covers there.
+        set_cache_root(str(values["cache_directory"]))
         #: The hand every request plans with and its identity (:mod:`grasp_apso.model.planning_hand`).
         self.planning_hand = load_planning_hand(str(values["hand_description"]), str(values["hand_config"]))
         hand = self._hand = self.planning_hand.hand

@@ -36,9 +36,11 @@ from typing import Any, Callable
 from rclpy.executors import Executor
 from rclpy.task import Future
 
-from ..cache import BoundedCache, set_cache_root
+from ..cache import BoundedCache
 from ..errors import GraspApsoError
 from ..model.objects import GraspObject
+from ..model.planning_hand import is_general_hand
+from ..search.any_hand_planner import warm_up_any_hand
 from ..search.planner import warm_up
 from .admission import Admission
 from .job import LOADING_STAGES, Deadline, Job, Stage
@@ -76,9 +78,9 @@ class Worker:
     objects from ``database`` (a :class:`~grasp_apso.database.lookup.GraspDatabase`) when given."""
 
     def __init__(self, hooks: Hooks, workers: int = 1, queue_length: int = 4, database: Any = None,
-                 cache_directory: str = "") -> None:
+                 hand: Any = None) -> None:
         self._hooks = hooks
-        set_cache_root(cache_directory)  # the disk caches (convex decompositions) of this node
+        self._hand = hand  # the node's planning hand (None: the paper's), warmed up before "ready"
         self.database = database
         self.admission = Admission(workers, queue_length)
         self.objects: BoundedCache[GraspObject] = BoundedCache(OBJECT_CACHE_ENTRIES, OBJECT_CACHE_BYTES)
@@ -251,6 +253,8 @@ class Worker:
         """Load the planner's compiled kernels now (the node does it before it says
         "ready"); seconds, or None when it failed (logged; requests then report it)."""
         try:
+            if is_general_hand(self._hand):
+                return warm_up_any_hand(self._hand)
             return warm_up()
         except Exception:  # noqa: BLE001 -- the node still starts and answers
             self.log("error", f"warm-up failed\n{traceback.format_exc()}")
