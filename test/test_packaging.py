@@ -51,7 +51,8 @@ def test_installed_distribution():
     assert scripts == {'planner_node': 'grasp_apso.ros.node:main',
                        'grasp_apso_plan': 'grasp_apso.tools.cli:main',
                        'grasp_apso_urdf': 'grasp_apso.tools.urdf_cli:main',
-                       'grasp_apso_batch': 'grasp_apso.tools.batch_cli:main'}
+                       'grasp_apso_batch': 'grasp_apso.tools.batch_cli:main',
+                       'grasp_apso_hand': 'grasp_apso.tools.hand_cli:main'}
     # pip (RECORD) or colcon (egg-info SOURCES.txt) file lists; the share/ files are
     # checked through the ament index below.
     files = [str(f) for f in dist.files or []]
