@@ -19,62 +19,25 @@ import numpy as np
 from ..errors import InputError, PlanningError
 from ..geometry.any_hand_decoder import AnyDecoded, AnyHandModel, decode_any, make_any_hand_model, with_any_scene
 from ..geometry.contact_settings import ContactSettings
-from ..quality.fitness import evaluate
 from .archive import LeaderArchive
 from .any_hand_grg import AnyHandGenerator
 from .any_hand_select import build_result, select_any
 from .grg import classify_shape
 from .options import PlanOptions
+from .problem import ARCHIVE_FACTOR, SwarmProblem
 from .swarm import IterationStats, run_swarm
 
 __all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_hand"]
 
-#: As the paper path (search.planner): archive size over max_grasps, the scene guide (m).
-ARCHIVE_FACTOR = 4
-SCENE_GUIDE = 0.02
+class AnyHandProblem(SwarmProblem):
+    """The optimisation problem of one plan with a general hand (the swarm's ``Problem``):
+    its decoder and GRG (:class:`~grasp_apso.search.problem.SwarmProblem` holds the rest)."""
 
-
-class AnyHandProblem:
-    """The optimisation problem of one plan (the swarm's ``Problem``): decode + fitness, GRG."""
-
-    def __init__(self, model: AnyHandModel, shape, options: PlanOptions, rng: np.random.Generator,
-                 archive: LeaderArchive | None = None, should_stop: Callable[[], bool] | None = None):
-        self.model, self.shape, self.mu = model, shape, options.friction
-        self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
-        self.lower, self.upper = model.lower, model.upper
-        self.generator = AnyHandGenerator(model, shape, rng, self.wrist_position, should_stop)
-        self.archive = archive
-        self._evaluations = 0
-
-    @property
-    def evaluations(self) -> int:
-        return self._evaluations + self.generator.evaluations
-
-    @property
-    def distinct_candidates(self) -> int:
-        return 0 if self.archive is None else len(self.archive)
+    def make_generator(self, rng: np.random.Generator, should_stop: Callable[[], bool] | None) -> AnyHandGenerator:
+        return AnyHandGenerator(self.model, self.shape, rng, self.wrist_position, should_stop)
 
     def decode(self, x: np.ndarray) -> AnyDecoded:
         return decode_any(self.model, x, self.wrist_position)
-
-    def fitness(self, decoded: AnyDecoded):
-        """The fitness terms of decoded particles (scene-illegal ones guided out)."""
-        terms = evaluate(self.model, decoded, self.shape.wrist_score(decoded.wrist[:, :3, :3]), self.mu)
-        fitness = terms.fitness
-        if self.model.scene is not None:
-            fitness = fitness - np.minimum(decoded.scene_violation / SCENE_GUIDE, 1.0)
-        return fitness, terms.active
-
-    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        decoded = self.decode(x)
-        self._evaluations += len(x)
-        fitness, active = self.fitness(decoded)
-        if self.archive is not None:
-            self.archive.offer(x, fitness, active, decoded.wrist)
-        return fitness, active, decoded.n_contacts
-
-    def guided(self, k: int) -> np.ndarray:
-        return self.generator.draw(k)
 
 
 def prepare_any_hand(obj, hand, options: PlanOptions) -> AnyHandModel:

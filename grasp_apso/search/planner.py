@@ -29,11 +29,11 @@ from ..model.hands.model import HandModel as AnyHand
 from ..model.hand import JOINT_NAMES, HandModel, load_hand
 from ..model.particle import LAYOUT
 from ..model.scene import Scene
-from ..quality.fitness import evaluate
 from .any_hand_planner import plan_any_hand
 from .archive import LeaderArchive
-from .grg import GuidedGenerator, ShapeClass, classify_shape
+from .grg import GuidedGenerator, classify_shape
 from .options import ALGORITHMS, PlanOptions
+from .problem import ARCHIVE_FACTOR, SwarmProblem
 from .result import Contact, GraspCandidate, GraspResult
 from .selection import Checked, Verifier, select_candidates, to_candidates
 from .simulated import SIMULATION_SPARE, simulate_until_held
@@ -47,58 +47,17 @@ __all__ = [
 #: Objects whose smallest extent exceeds this cannot be held in a precision grasp.
 MAX_GRASPABLE_WIDTH = 0.16
 MIN_GRASPABLE_SIZE = 0.005
-#: The leaders' archive holds this many times ``max_grasps`` distinct grasps.
-ARCHIVE_FACTOR = 4
 
 
-#: Scene-illegal particles score up to 1 lower, by their depth inside the clearance over
-#: this (m), so that the simple PSO is guided out of the scene too.
-SCENE_GUIDE = 0.02
+class GraspProblem(SwarmProblem):
+    """The optimisation problem of one plan with the paper's hand: its decoder and GRG
+    (:class:`~grasp_apso.search.problem.SwarmProblem` holds the rest)."""
 
-
-class GraspProblem:
-    """The optimisation problem of one plan: decode + fitness, and GRG draws.
-
-    ``archive`` (optional) observes every evaluation: the leaders' archive of the
-    candidates (:mod:`grasp_apso.search.archive`); it changes nothing in the search.
-    """
-
-    def __init__(self, model: GraspModel, shape: ShapeClass, options: PlanOptions, rng: np.random.Generator,
-                 archive: LeaderArchive | None = None, should_stop: Callable[[], bool] | None = None):
-        self.model = model
-        self.shape = shape
-        self.mu = options.friction
-        self.wrist_position = None if options.wrist_position is None else np.asarray(options.wrist_position, float)
-        self.lower, self.upper = model.lower, model.upper
-        self.generator = GuidedGenerator(model, shape, rng, self.wrist_position, should_stop=should_stop)
-        self.archive = archive
-        self._evaluations = 0
-
-    @property
-    def evaluations(self) -> int:
-        return self._evaluations + self.generator.evaluations
-
-    @property
-    def distinct_candidates(self) -> int:
-        """Entries of the leaders' archive so far (the action feedback)."""
-        return 0 if self.archive is None else len(self.archive)
+    def make_generator(self, rng: np.random.Generator, should_stop: Callable[[], bool] | None) -> GuidedGenerator:
+        return GuidedGenerator(self.model, self.shape, rng, self.wrist_position, should_stop=should_stop)
 
     def decode(self, x: np.ndarray) -> DecodedGrasps:
         return decode(self.model, x, self.wrist_position)
-
-    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        decoded = self.decode(x)
-        self._evaluations += len(x)
-        terms = evaluate(self.model, decoded, self.shape.wrist_score(decoded.wrist[:, :3, :3]), self.mu)
-        fitness = terms.fitness
-        if self.model.scene is not None:
-            fitness = fitness - np.minimum(decoded.scene_violation / SCENE_GUIDE, 1.0)
-        if self.archive is not None:
-            self.archive.offer(x, fitness, terms.active, decoded.wrist)
-        return fitness, terms.active, decoded.n_contacts
-
-    def guided(self, k: int) -> np.ndarray:
-        return self.generator.draw(k)
 
 
 def prepare(obj, hand: HandModel | None = None, options: PlanOptions | None = None) -> GraspModel:
