@@ -266,6 +266,10 @@ class Worker:
         for job in self.admission.select(lambda j: not j.started):
             self.cancel(job, "node shutting down")
         self._pool.shutdown(wait=wait, cancel_futures=True)
-        convex = sys.modules.get("grasp_apso.simulation.convex")  # loaded only by a simulate request
-        if convex is not None:
-            convex.cancel_background()
+        # Loaded only by a simulate request, maybe still being imported by another thread
+        # at this moment: a module whose import has not reached cancel_background has not
+        # started any decomposition either.
+        convex = sys.modules.get("grasp_apso.simulation.convex")
+        cancel = getattr(convex, "cancel_background", None)
+        if cancel is not None:
+            cancel()
