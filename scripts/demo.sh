@@ -8,8 +8,12 @@
 #      progress messages arrived on /grasp_apso/progress (grasp_apso/ros/demo_client.py)
 #   4. stop the node cleanly (SIGINT, wait), also when something fails
 #
-# Usage: bash scripts/demo.sh [sphere|cube|barrel|fish] [demo_client options...]
+# Usage: bash scripts/demo.sh [sphere|cube|barrel|fish] [--hand FILE [--hand-config FILE]]
+#                             [demo_client options...]
 #        e.g. bash scripts/demo.sh cube --algorithm pso --seed 3 --grasps 3 --no-table
+#             bash scripts/demo.sh --hand my_hand.urdf --mesh grasp_apso/data/meshes/mug.stl
+#   --hand / --hand-config go to the node (parameters hand_description / hand_config: any
+#   URDF or MJCF hand, loaded and checked at start-up); the rest to the demo client.
 # Environment:
 #   DEMO_ROS_DOMAIN_ID=N   DDS domain for the node and the client (default: one from the PID)
 set -euo pipefail
@@ -26,8 +30,23 @@ if [ ! -x "$PY" ] || ! "$PY" -c 'import rclpy, grasp_apso_interfaces' >/dev/null
   bash "$ROOT/scripts/setup.sh"
 fi
 
-OBJECT="${1:-fish}"
-[ "$#" -gt 0 ] && shift
+OBJECT="fish"
+if [ "$#" -gt 0 ] && [ "${1#-}" = "$1" ]; then OBJECT="$1"; shift; fi
+NODE_PARAMS=()
+CLIENT_ARGS=()
+WAIT=30
+while [ "$#" -gt 0 ]; do
+  case "$1" in
+    --hand|--hand-config)
+      [ "$#" -ge 2 ] || { say "error: $1 needs a file"; exit 2; }
+      [ -f "$2" ] || { say "error: $1: no such file: $2"; exit 2; }
+      key=hand_description; [ "$1" = "--hand-config" ] && key=hand_config
+      NODE_PARAMS+=(-p "$key:=$(cd "$(dirname "$2")" && pwd)/$(basename "$2")")
+      WAIT=300  # a hand new to this machine: its sphere cover is built once before "ready"
+      shift 2 ;;
+    *) CLIENT_ARGS+=("$1"); shift ;;
+  esac
+done
 
 # Isolation: a DDS domain of this demo only (102..201; the tests use 1..101), discovery
 # on this machine only, ROS log files in a temporary folder. The working tree's sources.
@@ -78,18 +97,19 @@ trap 'exit 130' INT
 trap 'exit 143' TERM
 
 say "starting the node: planner_node (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, log: $NODE_LOG)"
-"$PY" -m grasp_apso.ros.node --ros-args --params-file "$ROOT/config/grasp_apso.yaml" >"$NODE_LOG" 2>&1 &
+"$PY" -m grasp_apso.ros.node --ros-args --params-file "$ROOT/config/grasp_apso.yaml" \
+    ${NODE_PARAMS[@]+"${NODE_PARAMS[@]}"} >"$NODE_LOG" 2>&1 &
 NODE_PID=$!
 
 client_status=0
-"$PY" -m grasp_apso.ros.demo_client "$OBJECT" --wait 30 "$@" || client_status=$?
+"$PY" -m grasp_apso.ros.demo_client "$OBJECT" --wait "$WAIT" ${CLIENT_ARGS[@]+"${CLIENT_ARGS[@]}"} || client_status=$?
 if ! kill -0 "$NODE_PID" 2>/dev/null; then
   say "error: the node is not running any more"
   exit 1
 fi
 stop_node
 case "$client_status" in
-  0) say "done: the node planned valid grasps of the $OBJECT" ;;
+  0) say "done: the node planned valid grasps" ;;
   2) say "the node answered, but did not find a valid grasp (see the message above)" ;;
   *) say "error: the demo client failed (status $client_status)" ;;
 esac

@@ -1,8 +1,9 @@
 """Demo client of the ``grasp_apso`` node (``python -m grasp_apso.ros.demo_client [object]``).
 
 Waits for the node's ``~/plan_grasp`` service, subscribes to its ``~/progress`` topic,
-plans a grasp of a built-in object (fish by default), then prints the result readably:
-the 18 joints in degrees, the wrist pose, fitness, epsilon, force closure, contacts per
+plans a grasp of a built-in object (fish by default) or of a mesh file (``--mesh``, sent
+inline), then prints the result readably: the hand's joints in degrees (the paper hand's 18
+as a table of fingers), the wrist pose, fitness, epsilon, force closure, contacts per
 finger, iterations, planning time, and how many progress messages arrived on which topic.
 ``scripts/demo.sh`` (``make demo``) starts the node, runs this and stops the node.
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import threading
 import time
@@ -21,6 +23,8 @@ import time
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+import numpy as np
+import trimesh
 from scipy.spatial.transform import Rotation
 
 from shape_msgs.msg import Plane
@@ -37,7 +41,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
         prog="python -m grasp_apso.ros.demo_client",
         description="Plan a grasp of a built-in object through the grasp_apso node and print it.")
     parser.add_argument("object", nargs="?", default="fish", choices=BUILTIN_OBJECTS,
-                        help="built-in object (default: fish)")
+                        help="built-in object (default: fish); see also --mesh")
+    parser.add_argument("--mesh", default="", metavar="FILE",
+                        help="plan for this mesh file instead (STL/OBJ/PLY/OFF, metres), sent inline "
+                             "(mesh_vertices / mesh_triangles), e.g. grasp_apso/data/meshes/mug.stl")
     parser.add_argument("--node", default="/grasp_apso",
                         help="node name: the service is <node>/plan_grasp (default: /grasp_apso)")
     parser.add_argument("--algorithm", default="", help="apso or pso (default: node parameter)")
@@ -53,7 +60,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--grasps", type=int, default=5, help="max_grasps: ranked candidates wanted (default 5)")
     parser.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the service")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds to wait for the answer")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.mesh and not os.path.isfile(args.mesh):
+        parser.error(f"--mesh: no such file: {args.mesh}")
+    return args
 
 
 def _print_result(res: PlanGrasp.Response, round_trip: float) -> None:
@@ -65,13 +75,17 @@ def _print_result(res: PlanGrasp.Response, round_trip: float) -> None:
     positions = dict(zip(res.configuration.name, res.configuration.position))
     print("")
     print(f"configuration (sensor_msgs/JointState, frame '{res.configuration.header.frame_id}'), degrees:")
-    header = "  finger  " + "".join(f"{kind:>10}" for kind in JOINT_KINDS)
-    print(header)
-    for finger in FINGER_NAMES:
-        row = "".join(f"{math.degrees(positions[f'{finger}_{kind}']):10.1f}" for kind in JOINT_KINDS)
-        print(f"  {finger:<8}{row}")
-    wrist = "".join(f"{math.degrees(positions[n]):10.1f}" for n in ("wrist_x", "wrist_y", "wrist_z"))
-    print(f"  {'wrist':<8}{wrist}    (wrist_x, wrist_y, wrist_z)")
+    paper_names = [f"{f}_{k}" for f in FINGER_NAMES for k in JOINT_KINDS]
+    if all(n in positions for n in paper_names):  # the paper's hand: a table of fingers x joints
+        print("  finger  " + "".join(f"{kind:>10}" for kind in JOINT_KINDS))
+        for finger in FINGER_NAMES:
+            row = "".join(f"{math.degrees(positions[f'{finger}_{kind}']):10.1f}" for kind in JOINT_KINDS)
+            print(f"  {finger:<8}{row}")
+        wrist = "".join(f"{math.degrees(positions[n]):10.1f}" for n in ("wrist_x", "wrist_y", "wrist_z"))
+        print(f"  {'wrist':<8}{wrist}    (wrist_x, wrist_y, wrist_z)")
+    else:  # any other hand: its actuated joints, in the reply's order
+        for name, value in positions.items():
+            print(f"  {name:<32}{math.degrees(value):8.1f}")
     p, q = res.wrist_pose.pose.position, res.wrist_pose.pose.orientation
     rpy = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_euler("xyz", degrees=True)
     print("")
@@ -81,7 +95,7 @@ def _print_result(res: PlanGrasp.Response, round_trip: float) -> None:
     print(f"fitness        : {res.fitness:.4f}")
     print(f"epsilon quality: {res.epsilon_quality:.5f}")
     print(f"force closure  : {'yes' if res.force_closure else 'no'}")
-    counts = {f: res.contact_fingers.count(f) for f in FINGER_NAMES}
+    counts = {f: res.contact_fingers.count(f) for f in dict.fromkeys(res.contact_fingers)}
     print(f"contacts       : {len(res.contact_fingers)}  ("
           + ", ".join(f"{f} {n}" for f, n in counts.items()) + ")")
     for finger, point, normal in zip(res.contact_fingers, res.contact_points, res.contact_normals):
@@ -135,7 +149,6 @@ def main(argv: list[str] | None = None) -> int:
         while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
             time.sleep(0.02)
         request = PlanGrasp.Request()
-        request.object_name = args.object
         request.object_pose.header.frame_id = args.frame
         request.object_pose.header.stamp = node.get_clock().now().to_msg()
         request.object_pose.pose.position.x, request.object_pose.pose.position.y, \
@@ -146,13 +159,21 @@ def main(argv: list[str] | None = None) -> int:
         request.iterations = max(0, args.iterations)
         request.seed = args.seed
         request.max_grasps = max(0, args.grasps)
+        if args.mesh:
+            mesh = trimesh.load(args.mesh, force="mesh")
+            request.mesh_vertices = np.asarray(mesh.vertices, dtype=np.float64).ravel().tolist()
+            request.mesh_triangles = np.asarray(mesh.faces, dtype=np.uint32).ravel().tolist()
+            vertices = np.asarray(mesh.vertices)
+        else:
+            request.object_name = args.object
+            vertices = builtin(args.object).mesh.vertices
         if args.table:  # a support plane under the object's lowest point (identity orientation)
-            lowest = float(args.position[2]) + float(builtin(args.object).mesh.vertices[:, 2].min())
+            lowest = float(args.position[2]) + float(vertices[:, 2].min())
             plane = Plane()
             plane.coef = [0.0, 0.0, 1.0, -lowest]
             request.support_planes = [plane]
-        print(f"[demo] planning up to {request.max_grasps or 'the default number of'} grasps of the built-in "
-              f"'{args.object}' at ({args.position[0]}, {args.position[1]}, {args.position[2]}) m in frame "
+        what = f"the mesh {args.mesh}" if args.mesh else f"the built-in '{args.object}'"
+        print(f"[demo] planning up to {request.max_grasps or 'the default number of'} grasps of {what} at ({args.position[0]}, {args.position[1]}, {args.position[2]}) m in frame "
               f"'{args.frame}'" + (f", resting on a table at z = {-request.support_planes[0].coef[3]:.3f} m"
                                    if args.table else "") + " ...", flush=True)
         t0 = time.perf_counter()
