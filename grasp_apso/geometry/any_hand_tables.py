@@ -39,6 +39,10 @@ WRIST_UPPER = np.array([np.pi, np.pi / 2, np.pi])
 #: it, within [STANDOFF_MIN, STANDOFF_MAX].
 REACH_FRACTION = 1.0
 STANDOFF_MIN, STANDOFF_MAX = 0.03, 0.12
+#: The grasp centre's postures (:func:`_opposition_point`): how many, and the share (those
+#: with the pads nearest each other) whose pads' mean it is.
+OPPOSITION_SAMPLES = 2048
+OPPOSITION_SHARE = 0.05
 
 
 
@@ -328,9 +332,50 @@ def _overlap_pairs(hand, finger_links, rest: np.ndarray) -> np.ndarray:
     return np.array(out, dtype=np.int64).reshape(-1, 4)
 
 
+def _opposition_point(hand, z: np.ndarray, face: float) -> np.ndarray | None:
+    """Where the pads meet (3,) in the root frame, or None.
+
+    Seeded postures (pre-shape joints anywhere in range, every closing joint the same
+    fraction of the way): among those with every pad in front of the palm face, the
+    :data:`OPPOSITION_SHARE` whose pads are nearest the thumb's (all pads' mean pairwise
+    distance without a thumb); their pads' mean. The object is held there, so the grasp
+    centre lies under it: for long fingers, over the palm rather than out along the open
+    fingers (where the half-closed pads are).
+    """
+    rng = np.random.default_rng(0)
+    n = OPPOSITION_SAMPLES
+    lo, hi = np.asarray(hand.lower, float), np.asarray(hand.upper, float)
+    q = np.tile(np.clip(0.0, lo, hi), (n, 1))
+    fraction = rng.random(n)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            j = hand.actuated_joints.index(joint)
+            if sense == 0:
+                q[:, j] = rng.uniform(lo[j], hi[j], n)
+            else:
+                target = hi[j] if sense > 0 else lo[j]
+                q[:, j] = q[:, j] + fraction * (target - q[:, j])
+    poses = hand.link_transforms_batch(q)
+    pads = np.stack([poses[:, hand.link_index(f.pad_link), :3, :3] @ np.asarray(f.pad_center, float)
+                     + poses[:, hand.link_index(f.pad_link), :3, 3] for f in hand.fingers], axis=1)  # (n, F, 3)
+    thumb = [i for i, f in enumerate(hand.fingers) if f.is_thumb]
+    if thumb and len(hand.fingers) > 1:
+        others = [i for i in range(len(hand.fingers)) if i != thumb[0]]
+        spread = np.linalg.norm(pads[:, others] - pads[:, thumb[0]:thumb[0] + 1], axis=2).mean(axis=1)
+    else:
+        spread = np.linalg.norm(pads[:, :, None] - pads[:, None], axis=3).mean(axis=(1, 2))
+    spread[(pads @ z).min(axis=1) <= face] = np.inf
+    keep = np.argsort(spread)[:max(1, int(OPPOSITION_SHARE * n))]
+    keep = keep[np.isfinite(spread[keep])]
+    if not len(keep):
+        return None
+    return pads[keep].mean(axis=(0, 1))
+
+
 def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float]:
     """The palm frame (x toward the fingers, z the palm normal) in the root frame, the
-    grasp centre on the palm face (between the pads, laterally) and the pads' reach (m)."""
+    grasp centre on the palm face (under where the pads meet: :func:`_opposition_point`) and
+    the pads' reach (m)."""
     z = np.asarray(hand.palm_normal, float)
     z = z / np.linalg.norm(z)
     fractions = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -351,7 +396,9 @@ def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float]:
         face = float((centers @ z + np.asarray(cover.radii)).max())
     else:
         face = 0.0
-    lateral = pads[2].mean(0)
+    lateral = _opposition_point(hand, z, face)
+    if lateral is None:  # no posture puts every pad in front of the palm: the half-closed pads
+        lateral = pads[2].mean(0)
     lateral = lateral - (lateral @ z) * z
     # Reach: half the longest finger (its first link's origin to its pad, open).
     bases = [poses[0, hand.link_index(hand.finger_links(f)[0]), :3, 3] for f in hand.fingers]
