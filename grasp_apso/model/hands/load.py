@@ -153,7 +153,7 @@ def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres:
             raise HandDescriptionError(f"hand_config.closing.{joint}: not an actuated joint",
                                        field="hand_config.closing")
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
-    fingers = tuple(_finger(bare, label, sem, cfg) for label, sem in zip(labels, semantics))
+    fingers = tuple(_finger(bare, label, sem, cfg, normal) for label, sem in zip(labels, semantics))
     covers = _spheres(bare, cfg) if spheres else {}
     return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=MappingProxyType(covers),
                    notes=tuple(raw.notes) + tuple(notes))
@@ -199,7 +199,7 @@ def _ancestors(raw: RawHand, link: str) -> set[str]:
     return out
 
 
-def _finger(hand: HandModel, label: str, sem, cfg: HandConfig) -> Finger:
+def _finger(hand: HandModel, label: str, sem, cfg: HandConfig, palm_normal: np.ndarray) -> Finger:
     pad = cfg.get("pads", {}).get(label)
     if pad is not None:
         if pad["link"] not in hand.links:
@@ -207,9 +207,11 @@ def _finger(hand: HandModel, label: str, sem, cfg: HandConfig) -> Finger:
                                        field="hand_config.pads")
         return Finger(label, sem.tip_link, sem.joints, sem.closing, pad["link"], readonly(pad["center"]),
                       float(pad["radius"]), sem.is_thumb)
+    from .pad_probe import probe_pad
     from .pads import find_pad
 
-    center, radius = find_pad(hand.collision[sem.tip_link], sem.palmar, sem.distal)
+    at = probe_pad(hand, sem.tip_link, sem.joints, sem.closing, palm_normal)
+    center, radius = find_pad(hand.collision[sem.tip_link], sem.palmar, sem.distal, at=at)
     return Finger(label, sem.tip_link, sem.joints, sem.closing, sem.tip_link, readonly(center), float(radius),
                   sem.is_thumb)
 

@@ -1,5 +1,8 @@
 """The fingertip pad: where a finger's last link touches an object, and how round it is there.
 
+Where closing the finger tells (:func:`.pad_probe.probe_pad`), the pad is where the tip
+link first meets what it closes on (``at``); otherwise the geometric rule below.
+
 :func:`find_pad` takes the collision geometry of the link (link frame) and two directions
 of that frame: ``palmar`` (the side the finger closes toward) and ``distal`` (toward the
 tip). The pad is the part of the surface farthest along ``palmar`` among the points in
@@ -19,7 +22,7 @@ from ...errors import InputError
 from .geometry import LinkGeometry
 from .spheres import surface_samples, union_signed_distance
 
-__all__ = ["find_pad", "PAD_RADIUS_RANGE"]
+__all__ = ["find_pad", "outer_surface_samples", "PAD_RADIUS_RANGE"]
 
 #: The pad radius is clamped to this range (m).
 PAD_RADIUS_RANGE = (0.003, 0.015)
@@ -35,6 +38,9 @@ _MAX_SAMPLES = 30000
 _SLAB = 0.75e-3
 _WINDOW = 6e-3
 _MIN_FIT_POINTS = 12
+#: The step along a sample's normal that must leave the link for the sample to be on its
+#: outer surface (m).
+_OUT_STEP = 5e-4
 #: A fitted radius this many times the fitted half-window means flat across.
 _FLAT_RATIO = 4.0
 
@@ -46,14 +52,27 @@ def _unit(value, name: str) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def outer_surface_samples(geoms: Sequence[LinkGeometry], spacing: float, rng: np.random.Generator,
+                          max_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Surface samples (points (N, 3), outward normals (N, 3), link frame) of the link's
+    outer surface only: a sample is kept when a step :data:`_OUT_STEP` along its normal
+    leaves the link. Parts inside another geometry, and the faces where a mesh's convex
+    parts meet (a seam inside the solid), touch nothing."""
+    points, normals = surface_samples(geoms, spacing, rng, max_count)
+    outer = union_signed_distance(geoms, points + _OUT_STEP * normals) > 0.5 * _OUT_STEP
+    return points[outer], normals[outer]
+
+
 def find_pad(geoms: Sequence[LinkGeometry], palmar, distal,
-             rng: np.random.Generator | None = None) -> tuple[np.ndarray, float]:
+             rng: np.random.Generator | None = None, at=None) -> tuple[np.ndarray, float]:
     """The pad of a fingertip link.
 
     geoms : the link's collision geometries (link frame).
     palmar, distal : (3,) directions in the link frame (need not be unit; ``distal`` is
         made perpendicular to ``palmar``).
     rng : seeds the surface samples (default: a fixed seed).
+    at : (3,) link frame, optional: the pad is the surface point nearest this (found by
+        closing the finger, :mod:`.pad_probe`), its palmar side the surface's normal there.
     Returns (center (3,) m on the surface, link frame; radius m in ``PAD_RADIUS_RANGE``).
     """
     geoms = tuple(geoms)
@@ -68,10 +87,17 @@ def find_pad(geoms: Sequence[LinkGeometry], palmar, distal,
     across = np.cross(up, along)
     rng = np.random.default_rng(0) if rng is None else rng
 
-    points, normals = surface_samples(geoms, _SPACING, rng, _MAX_SAMPLES)
-    if len(geoms) > 1:  # only the outer surface: parts inside another geometry touch nothing
-        outer = union_signed_distance(geoms, points) > -1e-6
-        points, normals = points[outer], normals[outer]
+    points, normals = outer_surface_samples(geoms, _SPACING, rng, _MAX_SAMPLES)
+    if at is not None:
+        center = points[np.argmin(np.linalg.norm(points - np.asarray(at, float), axis=1))]
+        near = np.linalg.norm(points - center, axis=1) <= 2.0 * _SLAB
+        up = normals[near].mean(axis=0)
+        up /= np.linalg.norm(up)
+        along = along - (along @ up) * up
+        along = along / np.linalg.norm(along) if np.linalg.norm(along) > 1e-6 else np.cross(up, across)
+        across = np.cross(up, along)
+        patch = np.abs((points - center) @ up) <= _PATCH_DEPTH
+        return center, _pad_radius(points, normals, center, up, along, across, patch)
     t = points @ along
     distal_part = t >= t.max() - _DISTAL_FRACTION * (t.max() - t.min())
     height = points @ up
