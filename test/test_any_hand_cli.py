@@ -114,3 +114,29 @@ def test_plan_with_an_allegro_urdf_prints_its_joints_and_draws_it(capsys, allegr
     assert len(doc["results"]["apso"]["joint_positions"]) == 16
     pictures = [p for p in doc["pictures"] if p.endswith("_grasp.png")]
     assert pictures and os.path.getsize(pictures[0]) > 10_000
+
+
+def test_candidate_table_and_pictures_speak_of_the_hands_own_fingers(allegro, tmp_path):
+    """A hand whose fingers are called ``3``, ``7``, ``11`` (dex-urdf's Allegro) is tabulated
+    with those names, not run together as initials ("3711"); the paper hand keeps its
+    initials; the side view of any other hand does not speak of a little finger."""
+    from grasp_apso.presentation import summary
+
+    hand = load_any_hand(allegro, spheres=False)
+    result = _general_result(hand, builtin.builtin("cube"))
+    names = ("3", "7", "11", "15")
+    renamed = tuple(dataclasses.replace(c, contacts=tuple(dataclasses.replace(x, finger=names[i % 4])
+                                                          for i, x in enumerate(c.contacts)))
+                    for c in result.candidates)
+    table = summary.format_candidates(dataclasses.replace(result, candidates=renamed)).splitlines()
+    assert "little ring middle" not in table[0] and "fingers touching" in table[0]
+    for cand, row in zip(renamed, table[2:]):
+        label = ",".join(x.finger for x in cand.contacts)
+        assert row.split()[4:6] == [str(cand.n_contacts), label], row
+        assert "".join(x.finger for x in cand.contacts) not in row.split()
+    paper = summary.format_candidates(result).splitlines()
+    assert "L R M I T = little ring middle index thumb" in paper[0]
+    initials = {"little": "L", "ring": "R", "middle": "M", "index": "I", "thumb": "T"}
+    assert paper[2].split()[5] == "".join(initials[x.finger] for x in result.candidates[0].contacts)
+    assert plotting._view_label("side", hand) == "side view (across the palm)"
+    assert "little-finger side" in plotting._view_label("side", plotting.load_hand())

@@ -196,6 +196,21 @@ class AnyDecoded:
                              for f in fields(self)})
 
 
+def _pad_point_gaps(model: AnyHandModel, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Signed distance (P, F) m of each finger's pad point (``Finger.pad_center``, on the
+    pad link's surface) from the object at postures q (P, n); rot (P, 3, 3), trans (P, 3)
+    place the root in the object frame."""
+    t = model.tables
+    n_f = t.n_fingers
+    poses = np.empty((len(q), n_f, t.finger_link.shape[1], 4, 4))
+    hk.link_poses(np.ascontiguousarray(q), model.kin, poses)
+    pad = poses[:, np.arange(n_f), t.pad_local]                      # (P, F, 4, 4) root frame
+    local = np.array([f.pad_center for f in model.hand.fingers], dtype=float)
+    root_pts = np.einsum("pfij,fj->pfi", pad[..., :3, :3], local) + pad[..., :3, 3]
+    pts = np.einsum("pij,pfj->pfi", rot, root_pts) + trans[:, None, :]
+    return model.sdf.distance(pts.reshape(-1, 3)).reshape(len(q), n_f)
+
+
 def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> AnyDecoded:
     """Decode particles x (P, D) (clamped to the bounds) into grasps; see the module docstring."""
     lay, t, s = model.layout, model.tables, model.settings
@@ -220,7 +235,10 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
     tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN)
+    # The pad sphere may touch the object away from the pad point (a tilted fingertip):
+    # a contact is at the pad, so the pad point itself must be on the surface too.
+    contact = (stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN)
+               & (np.abs(_pad_point_gaps(model, rot, trans, q)) <= s.tolerance - GRID_MARGIN))
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():

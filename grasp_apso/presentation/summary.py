@@ -282,24 +282,40 @@ def _pose_and_rest(result: GraspResult, friction: float, pose_note: str, up: np.
     return lines
 
 
+def _paper_fingers(cands) -> bool:
+    """Every contact made by one of the paper hand's five fingers (initials are then enough)."""
+    return all(x.finger in _INITIAL for c in cands for x in c.contacts)
+
+
+def _contact_labels(cands) -> list[str]:
+    """The contacts column: the count, then the paper hand's initials (``3 MIT``) or, for any
+    other hand, its own finger names (``3 thumb,index,middle``; names like ``3``, ``7``
+    would run together as initials)."""
+    if _paper_fingers(cands):
+        return [f"{c.n_contacts} " + "".join(_INITIAL[x.finger] for x in c.contacts) for c in cands]
+    return [f"{c.n_contacts} " + ",".join(x.finger for x in c.contacts) for c in cands]
+
+
 def format_candidates(result: GraspResult) -> str:
     """Table of the ranked candidates: rank, quality, epsilon, force closure, contacts,
     wrist position (mm), approach direction and, when simulated, held / shift / turn."""
     cands = result.candidates
     simulated = any(c.sim_result != -1 for c in cands)
     scene = any(math.isfinite(c.scene_distance) for c in cands)
-    head = (f"  {'rank':>4} {'quality':>7} {'epsilon':>8} {'FC':>3} {'contacts':<10} "
+    labels = _contact_labels(cands)
+    width = max([10] + [len(x) for x in labels])
+    head = (f"  {'rank':>4} {'quality':>7} {'epsilon':>8} {'FC':>3} {'contacts':<{width}} "
             f"{'wrist position (mm)':>24}  {'approach (unit)':>22}")
     if scene:
         head += f" {'scene mm':>8}"
     if simulated:
         head += f"  {'simulation':<13} {'shift mm':>8} {'turn deg':>8}"
-    lines = [f"Candidates: {len(cands)}, best first (quality = ranking score in [0, 1]; "
-             "contacts L R M I T = little ring middle index thumb):", head]
-    for c in cands:
-        initials = "".join(_INITIAL.get(x.finger, x.finger[:1].upper() or "?") for x in c.contacts)
+    legend = ("contacts L R M I T = little ring middle index thumb" if _paper_fingers(cands)
+              else "contacts: how many, then the fingers touching")
+    lines = [f"Candidates: {len(cands)}, best first (quality = ranking score in [0, 1]; {legend}):", head]
+    for c, label in zip(cands, labels):
         row = (f"  {c.rank + 1:>4} {c.grasp_quality:7.3f} {c.epsilon:8.4f} {_yes(c.force_closure):>3} "
-               f"{f'{c.n_contacts} {initials}':<10} {_vec(np.asarray(c.wrist_pose)[:3, 3] * 1000):>24}  "
+               f"{label:<{width}} {_vec(np.asarray(c.wrist_pose)[:3, 3] * 1000):>24}  "
                f"{_vec(c.approach, '{:6.3f}'):>22}")
         if scene:
             row += f" {c.scene_distance * 1000:8.1f}"

@@ -19,7 +19,8 @@ the start of that arrow. Colours: :mod:`grasp_apso.presentation.palette`.
 The views follow the hand, so every grasp is seen the same way whatever its orientation:
 
 - *side view*: the camera looks across the palm from the little-finger side (along the
-  palm frame's +y), the palm normal points up the picture and the fingers to the right;
+  palm frame's +y; "across the palm" for any other hand), the palm normal points up the
+  picture and the fingers to the right;
 - *fingertip view*: the camera looks from beyond the fingertips back toward the wrist.
 
 With a table, both views keep the table horizontal instead (its normal up the picture,
@@ -72,6 +73,14 @@ _RUN_COLORS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9",
 _VIEW_LABELS = {"side": "side view (from the little-finger side)",
                 "fingertips": "fingertip view (from beyond the fingertips)",
                 "palm": "palm view (through the object)"}
+#: Any other hand has no little finger: its side view looks across the palm (its palm
+#: frame's y axis, x toward the fingers, z the palm normal).
+_GENERAL_SIDE = "side view (across the palm)"
+
+
+def _view_label(view: str, hand: Any) -> str:
+    """The caption of ``view`` in words that hold for ``hand``."""
+    return _GENERAL_SIDE if view == "side" and is_general_hand(hand) else _VIEW_LABELS[view]
 
 
 def _yes(flag: bool) -> str:
@@ -335,7 +344,7 @@ def plot_grasp(
     panels = []
     for k, view in enumerate(views):
         ax = fig.add_subplot(1, len(views), k + 1, projection="3d", computed_zorder=False)
-        label = _VIEW_LABELS[view] + ("; table level" if table and view != "palm" else "")
+        label = _view_label(view, hand) + ("; table level" if table and view != "palm" else "")
         panels.append(_draw_panel(ax, view, grasp, tris, com, hand, scene, bar_mm, label))
     _legend(fig, grasp, scene, bool(touching.any()), ncol=6, hand=hand)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.11, top=0.88, wspace=0.0)
@@ -377,7 +386,7 @@ def plot_candidates(
     name = getattr(obj, "name", None) or "object"
     fig.suptitle(title if title is not None else
                  f"{name}: {len(candidates)} ranked {str(result.algorithm).upper()} candidates, "
-                 f"{_VIEW_LABELS[view].split(' (')[0]}", fontsize=12)
+                 f"{_view_label(view, hand).split(' (')[0]}", fontsize=12)
     panels = []
     for k, (cand, grasp) in enumerate(zip(candidates, grasps)):
         ax = fig.add_subplot(rows, cols, k + 1, projection="3d", computed_zorder=False)
