@@ -24,8 +24,12 @@ link at the candidate's ``wrist_pose``:
     (a 4 m box whose top face is the support plane) >= clearance - 0.5 mm;
 (b) ``limits``: every joint (actuated and mimic followers, from the URDF's own limits) in range
     (1e-6 rad slack), at the grasp and at the pre-grasp;
-(c) ``pads``: the pad centre of every contacting finger (``Finger.pad_link`` /
-    ``pad_center``, placed by yourdfpy) within 2 mm of the object's surface (trimesh);
+(c) ``pads``: the pad of every contacting finger on the object: the sphere of radius
+    ``Finger.pad_radius`` through the pad point ``Finger.pad_center`` (placed by yourdfpy),
+    centred along the inward normal of the URDF's own fingertip mesh there, within 2 mm of
+    the object's surface (trimesh) with its pad side (the half facing the pad normal);
+    also reported, not a check: ``pad_pts``, candidates whose pad points themselves lie
+    within 2 mm, and ``fc``, force-closure candidates;
 (d) ``depth``: no link penetrates the object by more than 1 mm (python-fcl collide, the
     depth then measured from surface samples with trimesh's signed distance both ways).
 
@@ -64,6 +68,8 @@ PAD_TOL = 0.002      # m, pad centre to the object's surface
 DEPTH_TOL = 0.001    # m, a link inside the object
 LIMIT_TOL = 1e-6     # rad or m
 CHECKS = ("table", "limits", "pads", "depth")
+#: Reported next to the checks: pad points themselves within 2 mm, force closure.
+INFO = ("pad_pts", "fc")
 
 
 def load_object(name: str):
@@ -216,18 +222,29 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
             p = penetration(placed, obj_mesh, rng)
             if p > depth:
                 depth, depth_link = p, link
-    pads = []
+    pads, points = [], []
     for contact in cand.contacts:
         finger = hand.finger(contact.finger)
-        centre = poses[finger.pad_link] @ np.append(np.asarray(finger.pad_center, float), 1.0)
-        _, dist, _ = trimesh.proximity.closest_point(obj_mesh, centre[None, :3])
-        pads.append((contact.finger, float(dist[0])))
+        point = (poses[finger.pad_link] @ np.append(np.asarray(finger.pad_center, float), 1.0))[:3]
+        tip = trimesh.util.concatenate([m.copy().apply_transform(poses[link] @ origin)
+                                        for link, origin, _, m in ind.elements if link == finger.pad_link])
+        _, _, face = trimesh.proximity.closest_point(tip, point[None])
+        centre = point - finger.pad_radius * tip.face_normals[face[0]]
+        nearest, dist, _ = trimesh.proximity.closest_point(obj_mesh, np.stack([centre, point]))
+        inside = obj_mesh.contains(centre[None])[0]
+        gap = (-dist[0] if inside else dist[0]) - finger.pad_radius
+        facing = float((nearest[0] - centre) @ tip.face_normals[face[0]]) * (-1.0 if inside else 1.0)
+        pads.append((contact.finger, float(gap), facing >= -0.05 * max(float(dist[0]), 1e-9)))
+        points.append(float(dist[1]))
     return {
         "rank": cand.rank, "table_mm": 1000 * table_d, "table_link": table_link,
         "table": bool(table_d >= clearance - TABLE_TOL),
         "limits": not bad_limits, "limit_violations": bad_limits,
-        "pads_mm": {f: round(1000 * d, 2) for f, d in pads},
-        "pads": bool(pads) and all(d <= PAD_TOL for _, d in pads),
+        "pads_mm": {f: round(1000 * d, 2) for f, d, _ in pads},
+        "pads": bool(pads) and all(abs(d) <= PAD_TOL and side for _, d, side in pads),
+        "pad_points_mm": [round(1000 * d, 2) for d in points],
+        "pad_pts": bool(points) and max(points) <= PAD_TOL,
+        "fc": bool(cand.force_closure),
         "depth_mm": 1000 * depth, "depth_link": depth_link, "depth": bool(depth <= DEPTH_TOL),
         "force_closure": bool(cand.force_closure), "fingers": [c.finger for c in cand.contacts],
     }
@@ -275,27 +292,27 @@ def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict) -> list[di
             for cand in result.candidates:
                 row["candidates"].append(check_candidate(ind, hand, cand, obj_mesh, obj_fcl, table,
                                                          options.clearance, rng))
-            ok = {c: sum(x[c] for x in row["candidates"]) for c in CHECKS}
+            ok = {c: sum(x[c] for x in row["candidates"]) for c in CHECKS + INFO}
             print(f"  {path.stem:24s} {name:16s} seed {seed}: {len(result.candidates)} cands "
-                  f"{row['plan_s']:6.1f} s  " + " ".join(f"{c} {ok[c]}" for c in CHECKS), flush=True)
+                  f"{row['plan_s']:6.1f} s  " + " ".join(f"{c} {ok[c]}" for c in CHECKS + INFO), flush=True)
             rows.append(row)
     return rows
 
 
 def report(rows: list[dict]) -> dict:
     summary = {}
-    print(f"\n{'hand':26s} {'grasp/plans':>12s} {'cands':>6s} " + " ".join(f"{c:>7s}" for c in CHECKS)
+    print(f"\n{'hand':26s} {'grasp/plans':>12s} {'cands':>6s} " + " ".join(f"{c:>7s}" for c in CHECKS + INFO)
           + f" {'median s':>9s}")
     for hand in dict.fromkeys(r["hand"] for r in rows):
         group = [r for r in rows if r["hand"] == hand]
         cands = [c for r in group for c in r["candidates"]]
         times = [r["plan_s"] for r in group if "plan_s" in r]
         s = {"plans": len(group), "with_grasp": sum(bool(r["candidates"]) for r in group),
-             "candidates": len(cands), **{c: sum(x[c] for x in cands) for c in CHECKS},
+             "candidates": len(cands), **{c: sum(x[c] for x in cands) for c in CHECKS + INFO},
              "median_plan_s": statistics.median(times) if times else math.nan}
         summary[hand] = s
         print(f"{hand:26s} {s['with_grasp']:5d}/{s['plans']:<6d} {s['candidates']:6d} "
-              + " ".join(f"{s[c]:7d}" for c in CHECKS) + f" {s['median_plan_s']:9.1f}")
+              + " ".join(f"{s[c]:7d}" for c in CHECKS + INFO) + f" {s['median_plan_s']:9.1f}")
     print("\nFailing candidates:")
     for r in rows:
         for c in r["candidates"]:

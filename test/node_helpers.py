@@ -325,7 +325,7 @@ from grasp_apso_interfaces.srv import PlanGrasp
 rclpy.init()
 node = rclpy.create_node("dying_client")
 client = node.create_client(PlanGrasp, sys.argv[1])
-assert client.wait_for_service(timeout_sec=15.0)
+assert client.wait_for_service(timeout_sec=60.0)
 for _ in range(3):
     req = PlanGrasp.Request()
     req.object_name = "sphere"

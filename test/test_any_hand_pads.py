@@ -1,7 +1,9 @@
 """A general hand's contacts are AT its pads (issue 21, "pads on the object's surface within
-2 mm"): the pad point itself (``Finger.pad_center``, on the fingertip's surface) lies on the
-object, not just some point of the pad sphere (a tilted fingertip touching with its side or
-its very tip once passed).
+2 mm"): each contacting finger's pad -- the sphere of radius ``pad_radius`` whose surface
+passes through the pad point ``Finger.pad_center`` with the fingertip's own surface normal
+there -- lies within 2 mm of the object on its pad side (the half facing the pad normal: a
+fingertip touching with its back or its very tip once passed), and the reported contact is
+on that pad.
 
 Checked independently of the planner's kinematics: the URDF read again with yourdfpy, its
 forward kinematics (mimic joints applied by yourdfpy) placing the pad points, trimesh's exact
@@ -29,22 +31,32 @@ def urdf(request, tmp_path_factory):
     return write_allegro_like(tmp_path_factory.mktemp("pads"), "mixed", coupled=request.param)
 
 
-def _pad_distances(robot: yourdfpy.URDF, hand, cand, mesh: trimesh.Trimesh) -> dict[str, float]:
-    """Each contacting finger's pad point -> its distance (m) to the object's surface."""
+def _pads(robot: yourdfpy.URDF, hand, cand, mesh: trimesh.Trimesh) -> dict[str, tuple[float, float, float]]:
+    """Each contacting finger -> (pad gap m, cosine between its pad normal and the way to
+    the object, distance m of the reported contact from the pad sphere's surface)."""
     robot.update_cfg(dict(zip(hand.actuated_joints, np.asarray(cand.joint_positions, float))))
     base_root = robot.get_transform(frame_to=hand.root_link, frame_from=robot.base_link)
     world_base = np.asarray(cand.wrist_pose, float) @ np.linalg.inv(base_root)
     out = {}
     for contact in cand.contacts:
         finger = hand.finger(contact.finger)
+        tip = trimesh.util.concatenate([g.to_trimesh() for g in hand.collision[finger.pad_link]])
+        _, _, face = trimesh.proximity.closest_point(tip, np.asarray(finger.pad_center, float)[None])
+        normal_link = tip.face_normals[face[0]]
         link = world_base @ robot.get_transform(frame_to=finger.pad_link, frame_from=robot.base_link)
-        point = link @ np.append(np.asarray(finger.pad_center, float), 1.0)
-        _, distance, _ = trimesh.proximity.closest_point(mesh, point[None, :3])
-        out[contact.finger] = float(distance[0])
+        point = link[:3, :3] @ np.asarray(finger.pad_center, float) + link[:3, 3]
+        normal = link[:3, :3] @ normal_link
+        center = point - finger.pad_radius * normal
+        nearest, distance, _ = trimesh.proximity.closest_point(mesh, center[None])
+        way = (nearest[0] - center) / max(float(distance[0]), 1e-12)
+        inside = mesh.contains(center[None])[0]
+        gap = (-distance[0] if inside else distance[0]) - finger.pad_radius
+        reported = abs(np.linalg.norm(np.asarray(contact.position, float) - center) - finger.pad_radius)
+        out[contact.finger] = (float(gap), float(way @ normal) * (-1.0 if inside else 1.0), float(reported))
     return out
 
 
-def test_pad_points_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
+def test_pads_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
     hand = load_hand(urdf)
     robot = yourdfpy.URDF.load(str(urdf), load_meshes=False, load_collision_meshes=False,
                                build_collision_scene_graph=False)
@@ -58,8 +70,11 @@ def test_pad_points_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
             continue
         for cand in result.candidates:
             assert cand.n_contacts >= 2
-            distances = _pad_distances(robot, hand, cand, obj.mesh)
-            assert max(distances.values()) <= PAD_TOLERANCE, (seed, cand.rank, distances)
+            pads = _pads(robot, hand, cand, obj.mesh)
+            for finger, (gap, facing, reported) in pads.items():
+                assert abs(gap) <= PAD_TOLERANCE, (seed, cand.rank, finger, pads)
+                assert facing >= -0.05, (seed, cand.rank, finger, pads)  # the pad side, not the back
+                assert reported <= PAD_TOLERANCE, (seed, cand.rank, finger, pads)
             values = dict(zip(hand.actuated_joints, cand.joint_positions))
             for name, joint in robot.joint_map.items():
                 if joint.mimic is not None:

@@ -8,7 +8,8 @@ pre-shape along its closing senses (one parameter ``s`` per finger, couplings ap
 until one of its link spheres meets the surface (:func:`.any_hand_kernels.close_fingers`).
 A finger is in contact when its pad sphere (radius ``pad_radius``, its surface through the
 pad point ``Finger.pad_center``: :func:`.any_hand_tables.pad_sphere_center`) is then within
-the contact tolerance of the object's surface, either side (the contact point: the
+the contact tolerance of the object's surface with its pad side (within :data:`PAD_CONE`
+of the pad point), either side (the contact point: the
 sphere's centre projected on the surface along the gradient; the normal: the outward
 gradient); a finger without contact goes back to its pre-shape.
 Illegal: a finger penetrating at its pre-shape (blocked), a link deeper than
@@ -49,6 +50,13 @@ COVER_OVERLAP = 0.003
 #: A pad is in contact within the contact tolerance less this (m): the grid's trilinear
 #: distance errs by up to about this much near edges and curved surfaces.
 GRID_MARGIN = 0.0005
+#: The pad is the part of the pad sphere within this angle of the pad point (rad): the
+#: half facing the pad normal. A fingertip touching with its back or its very tip is no pad
+#: contact. (Narrower cones put the pad point itself on the surface -- within
+#: r (1 - cos PAD_CONE) -- but leave few postures in which a thumb can touch at all: on the
+#: Inspire and Allegro hands a 45 degree cone left a third as many force-closure grasps.)
+PAD_CONE = float(np.radians(90.0))
+_COS_CONE = float(np.cos(PAD_CONE)) + 1e-9
 
 
 @dataclass(frozen=True)
@@ -143,7 +151,8 @@ class AnyDecoded:
         the shape factor's wrist.
     contact : (P, F) bool; contact_points, contact_normals : (P, F, 3)
     tip_gap : (P, F) float, m
-        The pad sphere's clearance where the closing stopped (guides toward contact).
+        The pad's clearance where the closing stopped: the larger of the pad sphere's and
+        the pad point's (guides toward contact).
     pad_points : (P, F, 3) float, m
         The pad spheres' centres at the grasp.
     penetration, blocked, link_contact, finger_collision : (P, F)
@@ -196,10 +205,10 @@ class AnyDecoded:
                              for f in fields(self)})
 
 
-def _pad_point_gaps(model: AnyHandModel, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Signed distance (P, F) m of each finger's pad point (``Finger.pad_center``, on the
-    pad link's surface) from the object at postures q (P, n); rot (P, 3, 3), trans (P, 3)
-    place the root in the object frame."""
+def _pad_points(model: AnyHandModel, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Each finger's pad point (``Finger.pad_center``, on the pad link's surface) in the
+    object frame (P, F, 3) m at postures q (P, n); rot (P, 3, 3), trans (P, 3) place the
+    root in the object frame."""
     t = model.tables
     n_f = t.n_fingers
     poses = np.empty((len(q), n_f, t.finger_link.shape[1], 4, 4))
@@ -207,8 +216,19 @@ def _pad_point_gaps(model: AnyHandModel, rot: np.ndarray, trans: np.ndarray, q: 
     pad = poses[:, np.arange(n_f), t.pad_local]                      # (P, F, 4, 4) root frame
     local = np.array([f.pad_center for f in model.hand.fingers], dtype=float)
     root_pts = np.einsum("pfij,fj->pfi", pad[..., :3, :3], local) + pad[..., :3, 3]
-    pts = np.einsum("pij,pfj->pfi", rot, root_pts) + trans[:, None, :]
-    return model.sdf.distance(pts.reshape(-1, 3)).reshape(len(q), n_f)
+    return np.einsum("pij,pfj->pfi", rot, root_pts) + trans[:, None, :]
+
+
+def _pad_facing(model: AnyHandModel, points: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """(P, F) cosine between each pad's normal (its sphere's centre to its pad point) and
+    the inward surface normal where the pad sphere is nearest the object: 1 when the pad
+    point itself faces the surface, 0 when the fingertip touches with its side."""
+    pad_normal = points - centers
+    pad_normal /= np.maximum(np.linalg.norm(pad_normal, axis=2, keepdims=True), 1e-12)
+    _, gradient = model.sdf.distance_and_gradient(centers.reshape(-1, 3))
+    gradient = gradient.reshape(centers.shape)
+    gradient /= np.maximum(np.linalg.norm(gradient, axis=2, keepdims=True), 1e-12)
+    return -(pad_normal * gradient).sum(axis=2)
 
 
 def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> AnyDecoded:
@@ -233,12 +253,14 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     pad_pos, pad_gap = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
     hk.close_fingers(*grid, rot, trans, q0, model.kin, int(s.coarse_steps), max(REFINE_STEPS, s.refine_steps),
                      CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
-    tip_gap = pad_gap.copy()
     blocked = start < -s.tolerance
-    # The pad sphere may touch the object away from the pad point (a tilted fingertip):
-    # a contact is at the pad, so the pad point itself must be on the surface too.
-    contact = (stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN)
-               & (np.abs(_pad_point_gaps(model, rot, trans, q)) <= s.tolerance - GRID_MARGIN))
+    # The pad sphere may touch the object with the fingertip's side or tip, away from the
+    # pad: a contact is made with the pad, so the pad sphere must touch within PAD_CONE of
+    # the pad point's direction; the rest of the way guides the swarm toward it.
+    facing = _pad_facing(model, _pad_points(model, rot, trans, q), pad_pos)
+    off = np.maximum(0.0, _COS_CONE - facing) * t.pad_radius[None, :]
+    tip_gap = pad_gap + off
+    contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN) & (facing >= _COS_CONE)
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
@@ -251,7 +273,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
         hk.finger_clearances(*grid, rot, trans, q, rows, model.kin, CUTOFF, link_clear, pad_pos, pad_gap)
     penetration = np.maximum(0.0, -link_clear.min(axis=2))
     non_pad = link_clear.copy()
-    non_pad[:, np.arange(n_f), t.pad_local] = np.inf
+    non_pad[:, t.pad_body.astype(bool)] = np.inf  # the pad link and links fixed to it: one body
     link_contact = (non_pad.min(axis=2) <= s.link_contact_tolerance) & ~blocked
     if s.allow_link_contacts:
         link_contact[:] = False

@@ -26,7 +26,7 @@ _jit = numba.njit(cache=True, nogil=True)
 
 # indices into the kinematic tuple (see kin())
 _A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
-_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS = range(12, 30)
+_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS, _PADB = range(12, 31)
 
 
 def kin(t) -> tuple:
@@ -34,7 +34,7 @@ def kin(t) -> tuple:
     return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
             t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
             t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,
-            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack)
+            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body)
 
 
 @_jit
@@ -153,9 +153,10 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
             continue
         g0 = K[_GS][f, l]
         d = _groups_clearance(values, origin, spacing, rot, trans, poses[l], g0, g0 + K[_GC][f, l], K, cutoff, c)
-        if l == K[_PADL][f]:
-            # The pad link's cover may enter by its stray (it lies outside the exact
-            # surface); the pad sphere (the exact surface at the pad) may not.
+        if K[_PADB][f, l]:
+            # The pad link's cover (and that of links fixed to it: one body) may enter by
+            # its stray (it lies outside the exact surface); the pad sphere (the exact
+            # surface at the pad) may not.
             d = min(d + K[_PADS][f], _pad(values, origin, spacing, rot, trans, poses, f, K, c))
         link_out[l] = d
         best = min(best, d)

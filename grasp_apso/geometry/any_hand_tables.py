@@ -109,13 +109,14 @@ class HandTables:
     pad_local: np.ndarray        # (F,) int, finger-local index of the pad link
     pad_center: np.ndarray       # (F, 3) pad link frame: the pad sphere's centre (pad_sphere_center)
     pad_radius: np.ndarray       # (F,)
-    pad_slack: np.ndarray        # (F,) m: how far the pad link's cover strays outside its geometry
+    pad_slack: np.ndarray        # (F,) m: how far the pad body's covers stray outside its geometry
     j_count: np.ndarray          # (F,) int
     j_index: np.ndarray          # (F, Jmax) int, into q
     j_target: np.ndarray         # (F, Jmax) closing limit (or NaN for pre-shape joints)
     lnk_center: np.ndarray       # (F, Lmax, 3) link frame: bounding sphere of the link's groups
     lnk_radius: np.ndarray       # (F, Lmax), -1 for a link without spheres
     moving: np.ndarray           # (F, Lmax) int: 1 when the finger's closing moves the link
+    pad_body: np.ndarray         # (F, Lmax) int: 1 when the link is rigidly fixed to the pad link (one body)
     palm_bound: np.ndarray       # (4,) root frame: centre and radius bounding the palm's spheres
     palm_groups: np.ndarray      # (Gp,) int groups of the palm (root and non-finger links)
     palm_pose: np.ndarray        # (Gp, 4, 4) their link pose in the root frame
@@ -253,6 +254,10 @@ def _build(hand) -> HandTables:
         for l in range(int(n_links[f])):
             i = finger_link[f, l]
             moving[f, l] = int(not np.allclose(rest[0, i], rest[1, i], atol=1e-9))
+    pad_body = _pad_bodies(hand, finger_links, [p[0] for p in pads], lmax)
+    # The pad body's covers stray at most this far outside its exact surface.
+    pad_slack = [max(float(hand.spheres[name].max_stray) for l, name in enumerate(finger_links[f])
+                     if pad_body[f, l] and name in hand.spheres) for f in range(nf)]
     if palm_groups:
         pc = np.array([p[:3, :3] @ grp_center[g] + p[:3, 3] for g, p in zip(palm_groups, palm_pose)])
         palm_bound = np.append(*_bound(pc, np.array(grp_radius)[palm_groups]))
@@ -276,9 +281,9 @@ def _build(hand) -> HandTables:
         grp_center=_ro(grp_center), grp_radius=_ro(grp_radius), sph_center=_ro(sph_c), sph_radius=_ro(sph_r),
         pad_local=_ro([p[0] for p in pads], np.int64), pad_center=_ro([p[1] for p in pads]),
         pad_radius=_ro([p[2] for p in pads]),
-        pad_slack=_ro([float(hand.spheres[fg.pad_link].max_stray) for fg in fingers]), j_count=_ro(j_count, np.int64), j_index=_ro(j_index, np.int64),
+        pad_slack=_ro(pad_slack), j_count=_ro(j_count, np.int64), j_index=_ro(j_index, np.int64),
         j_target=_ro(j_target), lnk_center=_ro(lnk_center), lnk_radius=_ro(lnk_radius),
-        moving=_ro(moving, np.int64),
+        moving=_ro(moving, np.int64), pad_body=_ro(pad_body, np.int64),
         palm_bound=_ro(palm_bound), palm_groups=_ro(palm_groups, np.int64),
         palm_pose=_ro(np.reshape(palm_pose, (-1, 4, 4))), pairs=_ro(pairs, np.int64).reshape(-1, 4),
         basis=_ro(basis), grasp_center=_ro(center), open_q=_ro(q_open),
@@ -302,6 +307,24 @@ def pad_sphere_center(hand, finger) -> np.ndarray:
         raise HandDescriptionError(f"hand {hand.name!r}: no surface normal at the pad of finger {finger.name!r}",
                                    field="pad_center")
     return p - finger.pad_radius * grad / norm
+
+
+def _pad_bodies(hand, finger_links, pad_local, lmax: int) -> np.ndarray:
+    """(F, Lmax) bool: the finger's links whose pose relative to its pad link is the same
+    in three postures (fixed joints between them: a fingertip link on its phalanx). Their
+    touching the object is the pad's body touching, not another link."""
+    rng = np.random.default_rng(0)
+    lo, hi = np.asarray(hand.lower, float), np.asarray(hand.upper, float)
+    q = np.stack([hand.open_configuration(), hand.closed_configuration(0.9), rng.uniform(lo, hi)])
+    poses = hand.link_transforms_batch(q)
+    out = np.zeros((len(finger_links), lmax), dtype=bool)
+    for f, links in enumerate(finger_links):
+        pad = poses[:, hand.link_index(links[pad_local[f]])]
+        inv = np.linalg.inv(pad)
+        for l, name in enumerate(links):
+            rel = inv @ poses[:, hand.link_index(name)]
+            out[f, l] = bool(np.allclose(rel, rel[0], atol=1e-9))
+    return out
 
 
 def _bound(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, float]:

@@ -26,8 +26,9 @@ OPEN_FRACTION = 0.5
 #: Pre-shape joints of the fingers other than the thumb: within this fraction of their
 #: range either side of the open value (the thumb's: anywhere, for opposition).
 SPREAD_FRACTION = 0.15
-#: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR).
-REGENERATE_ROUNDS = 2
+#: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR) and fingers
+#: without a pad contact (another pre-shape).
+REGENERATE_ROUNDS = 4
 REGENERATE_FACTOR = 0.5
 #: Rounds of drawing batches and the batch size over the particles wanted.
 DRAW_ROUNDS = 12
@@ -96,15 +97,20 @@ class AnyHandGenerator:
                 decoded.n_contacts >= 2)
             good[rows] = near[rows] & decoded.legal(s.max_penetration)
             bad = illegal & ~near[rows][:, None]
-            if round_ == REGENERATE_ROUNDS or not bad.any():
+            # Fingers of particles not yet valid that made no pad contact try another
+            # pre-shape (each finger closes on its own, so the others keep theirs): a pad
+            # meets the surface only at some fingertip angles.
+            retry = ~decoded.contact & ~illegal & ~near[rows][:, None]
+            if round_ == REGENERATE_ROUNDS or not (bad.any() or retry.any()):
                 break
             fraction *= REGENERATE_FACTOR
             fresh = _preshape(self.model, len(rows), self.rng, fraction)
+            other = _preshape(self.model, len(rows), self.rng, OPEN_FRACTION)
             for f in range(t.n_fingers):
                 joints = 4 + t.j_index[f, :int(t.j_count[f])]
-                sel = bad[:, f]
-                x[np.ix_(rows[sel], joints)] = fresh[np.ix_(sel, joints - 4)]
-            rows = rows[bad.any(axis=1)]
+                for sel, new in ((bad[:, f], fresh), (retry[:, f], other)):
+                    x[np.ix_(rows[sel], joints)] = new[np.ix_(sel, joints - 4)]
+            rows = rows[(bad | retry).any(axis=1)]
         return x, good, near & ~good
 
     def draw(self, k: int) -> np.ndarray:
