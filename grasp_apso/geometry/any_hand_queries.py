@@ -113,10 +113,11 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
 
     ``object_pose`` (4, 4): the object frame in the query frame (None: the same frame).
     First GJK against the object's convex hull (a solid ``fcl.Convex``: quick, a lower
-    bound for a non-convex object, within ~0.4 mm for a convex one); parts it finds within
-    ``exact_within`` (m) are measured exactly: on the BVH, a sphere by the mesh's exact
-    signed distance at its centre. Beyond it the value is the hull's: a lower bound (for a
-    convex object, within ~0.4 mm). fcl finds a part wholly inside a
+    bound for a non-convex object, within ~0.4 mm for a convex one), a mesh part's own
+    convex hull first (a mesh part whose hull stays ``exact_within`` away keeps that
+    lower bound); parts it finds within ``exact_within`` (m) are measured exactly: on the
+    BVH, a sphere by the mesh's exact signed distance at its centre. Beyond it the value
+    is a lower bound (a primitive against a convex object: within ~0.4 mm). fcl finds a part wholly inside a
     non-convex mesh (a hollow surface to fcl) apart: one sample per part decides, in one
     batch; a mesh part holding the object wholly: one object vertex decides. Touching
     parts then get their depth from their samples."""
@@ -129,7 +130,17 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     for o in (target, hull):
         o.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
     inflate = np.array([shapes.samples[k][1] for k in parts])
+    far = np.zeros(len(parts), dtype=bool)
+    hulls = shapes.hull_objects() if not shapes.primitive[parts].all() else None
     for i, k in enumerate(parts):
+        if hulls is not None and not shapes.primitive[k]:
+            # The part's hull against the object's: a lower bound in microseconds; a mesh
+            # part's BVH against the hull only where that bound is within exact_within.
+            hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
+            out[i] = fcl_distance(hulls[k], hull)
+            far[i] = out[i] >= exact_within
+            if far[i]:
+                continue
         out[i] = fcl_distance(objs[k], hull)
     deep = out <= TOUCH_EPS
     refine = np.flatnonzero((out < exact_within) & (~deep if shape.convex else True))
@@ -149,7 +160,7 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     vertex = to_frame(pose, shape.vertices[:1])[0]
     centre = np.einsum("kij,kj->ki", poses[parts, :3, :3], shapes.bound_centre[parts]) + poses[parts, :3, 3]
     holds = (np.linalg.norm(centre - vertex, axis=1) <= shapes.bound_radius[parts]) & ~shapes.primitive[parts]
-    for i in np.flatnonzero(holds & ~deep):  # a (hollow) mesh part around the object?
+    for i in np.flatnonzero(holds & ~deep & ~far):  # a (hollow) mesh part around the object?
         k = parts[i]
         deep[i] = _sdf(shapes.geoms[k], poses[k], vertex[None])[0] < 0.0
     ball = (to_frame(pose, shape.centre[None])[0], shape.radius)
