@@ -16,7 +16,7 @@ import math
 import numba
 import numpy as np
 
-from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point
+from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point, _point_xyz
 
 __all__ = ["scene_margins", "APPROACH_FRACTIONS"]
 
@@ -61,13 +61,13 @@ def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, 
 def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
     best = np.inf
     for g in range(g0, g1):
-        _point(rot, trans, pose, K[_GRCEN][g], c)
+        _point_xyz(rot, trans, pose, K[_GRCEN][g, 0], K[_GRCEN][g, 1], K[_GRCEN][g, 2], c)
         d = _scene_distance(c, *S) - K[_GRR][g]
         if d > cutoff:
             best = min(best, d)
             continue
         for s in range(K[_GRS][g], K[_GRS][g] + K[_GRC][g]):
-            _point(rot, trans, pose, K[_SC][s], c)
+            _point_xyz(rot, trans, pose, K[_SC][s, 0], K[_SC][s, 1], K[_SC][s, 2], c)
             best = min(best, _scene_distance(c, *S) - K[_SR][s])
     return best
 
@@ -80,7 +80,7 @@ def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cu
         for l in range(K[_NL][f]):
             if K[_LR][f, l] < 0.0:
                 continue
-            _point(rot, trans, poses[f, l], K[_LC][f, l], c)
+            _point_xyz(rot, trans, poses[f, l], K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
             d = _scene_distance(c, *S) - K[_LR][f, l]
             if d > cutoff:
                 best = min(best, d)
