@@ -160,23 +160,33 @@ def _point_xyz(rot, trans, pose, px, py, pz, out):
 
 
 @_jit
-def _groups_clearance(values, origin, spacing, rot, trans, pose, g0, g1, K, cutoff, c, first_touch=False):
+def _point_at(rot, trans, poses, l, px, py, pz, out):
+    """:func:`_point_xyz` with the pose ``poses[l]`` read in place."""
+    for i in range(3):
+        out[i] = poses[l, i, 0] * px + poses[l, i, 1] * py + poses[l, i, 2] * pz + poses[l, i, 3]
+    x, y, z = out[0], out[1], out[2]
+    for i in range(3):
+        out[i] = rot[i, 0] * x + rot[i, 1] * y + rot[i, 2] * z + trans[i]
+
+
+@_inline
+def _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g1, K, cutoff, c, first_touch=False):
     """Least clearance (sdf - radius, m) of the spheres of groups g0..g1-1 of a link at
-    ``pose``; ``first_touch``: returns at the first sphere at or below 0 (only the sign is
+    ``poses[l]``; ``first_touch``: returns at the first sphere at or below 0 (only the sign is
     wanted: the closing sweep)."""
     ox, oy, oz = origin[0], origin[1], origin[2]
     inv = 1.0 / spacing
     grc, sc = K[_GRCEN], K[_SC]
     best = np.inf
     for g in range(g0, g1):
-        _point_xyz(rot, trans, pose, grc[g, 0], grc[g, 1], grc[g, 2], c)
+        _point_at(rot, trans, poses, l, grc[g, 0], grc[g, 1], grc[g, 2], c)
         d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_GRR][g]
         if d > cutoff:
             best = min(best, d)
             continue
         s0 = K[_GRS][g]
         for s in range(s0, s0 + K[_GRC][g]):
-            _point_xyz(rot, trans, pose, sc[s, 0], sc[s, 1], sc[s, 2], c)
+            _point_at(rot, trans, poses, l, sc[s, 0], sc[s, 1], sc[s, 2], c)
             d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_SR][s]
             best = min(best, d)
             if first_touch and best <= 0.0:
@@ -184,7 +194,7 @@ def _groups_clearance(values, origin, spacing, rot, trans, pose, g0, g1, K, cuto
     return best
 
 
-@_jit
+@_inline
 def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, link_out, c, moving_only=False):
     """Least clearance over finger f's links (posed), per link into link_out (Lmax,);
     ``moving_only``: only the links the closing moves (the others keep link_out)."""
@@ -196,14 +206,14 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
         if K[_LR][f, l] < 0.0:
             link_out[l] = np.inf
             continue
-        _point_xyz(rot, trans, poses[l], K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
+        _point_at(rot, trans, poses, l, K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
         d = _grid_distance(values, ox, oy, oz, 1.0 / spacing, spacing, c[0], c[1], c[2]) - K[_LR][f, l]
         if d > cutoff:
             link_out[l] = d
             best = min(best, d)
             continue
         g0 = K[_GS][f, l]
-        d = _groups_clearance(values, origin, spacing, rot, trans, poses[l], g0, g0 + K[_GC][f, l], K, cutoff, c,
+        d = _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g0 + K[_GC][f, l], K, cutoff, c,
                               moving_only and K[_PADL][f] != l)
         if l == K[_PADL][f]:
             # The pad link's cover may enter by its stray (it lies outside the exact
@@ -216,7 +226,7 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
     return best
 
 
-@_jit
+@_inline
 def _set_closing(q, q0, f, K, s):
     for k in range(K[_JC][f]):
         target = K[_JT][f, k]
@@ -225,11 +235,11 @@ def _set_closing(q, q0, f, K, s):
             q[j] = q0[j] + s * (target - q0[j])
 
 
-@_jit
+@_inline
 def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
     """Pad sphere's centre (object frame) into pad_pos (3,); returns its clearance (sdf -
     pad radius, m): 0 when the pad touches the surface."""
-    _point_xyz(rot, trans, poses[K[_PADL][f]], K[_PADC][f, 0], K[_PADC][f, 1], K[_PADC][f, 2], pad_pos)
+    _point_at(rot, trans, poses, K[_PADL][f], K[_PADC][f, 0], K[_PADC][f, 1], K[_PADC][f, 2], pad_pos)
     return _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing,
                           pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]
 
@@ -400,6 +410,6 @@ def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, c
         best = np.inf
         for i in range(groups.shape[0]):
             g = groups[i]
-            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose[i], g, g + 1, K, cutoff, c)
+            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose, i, g, g + 1, K, cutoff, c)
             best = min(best, d)
         out[p] = best

@@ -27,6 +27,8 @@ APPROACH_FRACTIONS = (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0)
 SCENE_CUTOFF = 0.0
 
 _jit = numba.njit(cache=True, nogil=True)
+#: Helpers that take the kinematic and scene tuples are inlined (see any_hand_kernels._inline).
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 
 @_jit
@@ -57,7 +59,7 @@ def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, 
     return best
 
 
-@_jit
+@_inline
 def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
     best = np.inf
     for g in range(g0, g1):
@@ -72,7 +74,7 @@ def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
     return best
 
 
-@_jit
+@_inline
 def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c):
     """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4))."""
     best = np.inf
