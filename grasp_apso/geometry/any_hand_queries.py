@@ -82,7 +82,8 @@ def _segments(shapes: HandShapes, poses: np.ndarray, parts: np.ndarray) -> tuple
 def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np.ndarray, b: np.ndarray,
                         below: float) -> np.ndarray:
     """Signed distances (m) of the part pairs (a[i], b[i]); pairs that cannot come below
-    ``below`` are left at a lower bound (their bounding spheres' gap), not measured.
+    ``below`` are left at a lower bound (their bounding spheres' gap, or for a pair with a
+    mesh part, the gap between the parts' convex hulls), not measured.
 
     Rounded pairs in closed form (segment distance minus the radii, in one batch); the
     others fcl (``objs`` this thread's part objects, placed at ``poses``), then samples."""
@@ -97,8 +98,23 @@ def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np
         centre = np.einsum("kij,kj->ki", poses[:, :3, :3], shapes.bound_centre) + poses[:, :3, 3]
         ra, rb = a[rest], b[rest]
         out[rest] = np.linalg.norm(centre[ra] - centre[rb], axis=1) - shapes.bound_radius[ra] - shapes.bound_radius[rb]
+        hulls = None
         for idx in rest[out[rest] < below]:
             i, j = int(a[idx]), int(b[idx])
+            if not (shapes.primitive[i] and shapes.primitive[j]):
+                # The parts' hulls first: apart, they bound the pair's distance from below
+                # (a mesh pair's BVHs take milliseconds, their hulls microseconds).
+                if hulls is None:
+                    hulls = shapes.hull_objects()
+                    placed: set[int] = set()
+                for k in (i, j):
+                    if k not in placed:
+                        hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
+                        placed.add(k)
+                d = fcl_distance(hulls[i], hulls[j])
+                if d > max(below, TOUCH_EPS):
+                    out[idx] = d
+                    continue
             d = fcl_distance(objs[i], objs[j])
             if d <= TOUCH_EPS:
                 d = solid_pair(shapes.geoms[i], poses[i], shapes.samples[i], shapes.geoms[j], poses[j],
