@@ -17,6 +17,9 @@ from grasp_apso.geometry.any_hand_tables import hand_tables
 from grasp_apso.model.hands.load import load_hand
 from hand_files import installed_hand, write_allegro_like
 
+#: GJK's distance between separated convex shapes can exceed the exact one by this (m).
+GJK_TOL = 2e-5
+
 
 @pytest.fixture(scope="module")
 def hands(tmp_path_factory):
@@ -51,9 +54,9 @@ def test_mesh_pairs_keep_the_bvh_distance_or_a_hull_bound_below_it(hands):
     hc = HandCollision(hands["inspire"])
     a, b = hc.shapes.pair_candidates
     rng = np.random.default_rng(5)
-    below = 0.004
+    below = 0.01
     bounded = exact = 0
-    for _ in range(4):
+    for _ in range(6):
         q = rng.uniform(hc.hand.lower, hc.hand.upper)
         poses = hc.part_poses(q, np.eye(4))
         objs = hc.place(poses)
@@ -65,7 +68,7 @@ def test_mesh_pairs_keep_the_bvh_distance_or_a_hull_bound_below_it(hands):
             elif d < below:
                 assert d == pytest.approx(bvh, abs=1e-9)
                 exact += 1
-            else:
-                assert d <= bvh + 1e-9
+            else:  # GJK converges from above: within its tolerance (micrometres) of the hulls' gap
+                assert d <= bvh + GJK_TOL
                 bounded += 1
-    assert exact >= 5 and bounded >= 5
+    assert exact >= 4 and bounded >= 20, (exact, bounded)
