@@ -40,54 +40,14 @@ def kin(t) -> tuple:
             t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack)
 
 
-@_jit
-def _compose(a, b, out):
-    """out = a @ b for 4x4 rigid transforms (out distinct from a and b)."""
-    for i in range(3):
-        for j in range(4):
-            v = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
-            if j == 3:
-                v += a[i, 3]
-            out[i, j] = v
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
-
-
-@_jit
-def _motion(kind, axis, anchor, value, out):
-    """The local transform of one joint motion (4, 4) by ``value`` (rad or m)."""
-    for i in range(4):
-        for j in range(4):
-            out[i, j] = 1.0 if i == j else 0.0
-    if kind == 1:
-        for i in range(3):
-            out[i, 3] = value * axis[i]
-        return
-    x, y, z = axis[0], axis[1], axis[2]
-    s, c = math.sin(value), math.cos(value)
-    t = 1.0 - c
-    out[0, 0] = c + x * x * t
-    out[0, 1] = x * y * t - z * s
-    out[0, 2] = x * z * t + y * s
-    out[1, 0] = y * x * t + z * s
-    out[1, 1] = c + y * y * t
-    out[1, 2] = y * z * t - x * s
-    out[2, 0] = z * x * t - y * s
-    out[2, 1] = z * y * t + x * s
-    out[2, 2] = c + z * z * t
-    for i in range(3):
-        out[i, 3] = anchor[i] - (out[i, 0] * anchor[0] + out[i, 1] * anchor[1] + out[i, 2] * anchor[2])
-
-
 @_inline
 def finger_poses(q, f, K, poses, tmp, local):
     """Poses (root frame) of finger ``f``'s links at actuated positions q (n,) -> poses (Lmax, 4, 4).
 
     Written out on the tables' elements (no array views: a view per element costs more
-    than the arithmetic); the same operations, in the same order, as :func:`_compose`
-    of :func:`_motion`. ``tmp`` and ``local`` are unused (kept for the callers)."""
+    than the arithmetic): each link's constant pose composed onto its parent's, then each
+    joint motion (revolute about an axis through an anchor, prismatic along an axis)
+    composed onto it. ``tmp`` and ``local`` are unused (kept for the callers)."""
     full_a, full_b, pre, parent = K[_A], K[_B], K[_PRE], K[_PAR]
     m_start, m_count, m_kind, m_axis, m_anchor, m_index, m_ref = K[_MS], K[_MC], K[_MK], K[_MAX], K[_MAN], K[_MI], K[_MR]
     nq = q.shape[0]
