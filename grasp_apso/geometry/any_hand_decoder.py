@@ -264,10 +264,11 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
+        owned = np.zeros((n_f, q.shape[1]), dtype=bool)  # (F, n): the joints each finger closes
         for f in range(n_f):
-            rows = reset[:, f]
-            joints = t.j_index[f, :t.j_count[f]]
-            q[np.ix_(rows, joints)] = q0[np.ix_(rows, joints)]
+            owned[f, t.j_index[f, :t.j_count[f]]] = True
+        back = (reset[:, :, None] & owned[None]).any(axis=1)
+        q[back] = q0[back]
         rows = np.argwhere(reset).astype(np.int64)
         link_clear[rows[:, 0], rows[:, 1]] = np.inf
         hk.finger_clearances(*grid, rot, trans, q, rows, model.kin, CUTOFF, link_clear, pad_pos, pad_gap)

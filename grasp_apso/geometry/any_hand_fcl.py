@@ -140,8 +140,9 @@ class AnyHandReport:
     link_distance : (Lg,) float, m
         Signed distance of each link to the object: the gap, or minus the depth of its
         deepest point inside (penetration). Exact below ``exact_within``; at or beyond it,
-        a lower bound (the distance to the object's convex hull, GJK: for a convex object
-        within ~0.4 mm, for a non-convex one possibly much less than the true gap).
+        a lower bound (GJK against the object's convex hull: a primitive link against a
+        convex object within ~0.4 mm; a mesh link, its own convex hull against the
+        object's; for a non-convex one possibly much less than the true gap).
     touching : (Lg,) bool
         ``link_distance <= tolerance``.
     deepest_penetration : float, m, >= 0

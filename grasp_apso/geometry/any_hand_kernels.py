@@ -23,6 +23,9 @@ import numpy as np
 from .kernels import _grid_distance
 
 _jit = numba.njit(cache=True, nogil=True)
+#: Helpers that take the kinematic tuple are inlined into their callers: a call passing the
+#: tuple's 30 arrays costs their reference counting, more than the helper's arithmetic.
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 # indices into the kinematic tuple (see kin())
 _A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
@@ -37,103 +40,121 @@ def kin(t) -> tuple:
             t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body)
 
 
-@_jit
-def _compose(a, b, out):
-    """out = a @ b for 4x4 rigid transforms (out distinct from a and b)."""
-    for i in range(3):
-        for j in range(4):
-            v = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
-            if j == 3:
-                v += a[i, 3]
-            out[i, j] = v
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
-
-
-@_jit
-def _motion(kind, axis, anchor, value, out):
-    """The local transform of one joint motion (4, 4) by ``value`` (rad or m)."""
-    for i in range(4):
-        for j in range(4):
-            out[i, j] = 1.0 if i == j else 0.0
-    if kind == 1:
-        for i in range(3):
-            out[i, 3] = value * axis[i]
-        return
-    x, y, z = axis[0], axis[1], axis[2]
-    s, c = math.sin(value), math.cos(value)
-    t = 1.0 - c
-    out[0, 0] = c + x * x * t
-    out[0, 1] = x * y * t - z * s
-    out[0, 2] = x * z * t + y * s
-    out[1, 0] = y * x * t + z * s
-    out[1, 1] = c + y * y * t
-    out[1, 2] = y * z * t - x * s
-    out[2, 0] = z * x * t - y * s
-    out[2, 1] = z * y * t + x * s
-    out[2, 2] = c + z * z * t
-    for i in range(3):
-        out[i, 3] = anchor[i] - (out[i, 0] * anchor[0] + out[i, 1] * anchor[1] + out[i, 2] * anchor[2])
-
-
-@_jit
+@_inline
 def finger_poses(q, f, K, poses, tmp, local):
-    """Poses (root frame) of finger ``f``'s links at actuated positions q (n,) -> poses (Lmax, 4, 4)."""
-    full_a, full_b = K[_A], K[_B]
+    """Poses (root frame) of finger ``f``'s links at actuated positions q (n,) -> poses (Lmax, 4, 4).
+
+    Written out on the tables' elements (no array views: a view per element costs more
+    than the arithmetic): each link's constant pose composed onto its parent's, then each
+    joint motion (revolute about an axis through an anchor, prismatic along an axis)
+    composed onto it. ``tmp`` and ``local`` are unused (kept for the callers)."""
+    full_a, full_b, pre, parent = K[_A], K[_B], K[_PRE], K[_PAR]
+    m_start, m_count, m_kind, m_axis, m_anchor, m_index, m_ref = K[_MS], K[_MC], K[_MK], K[_MAX], K[_MAN], K[_MI], K[_MR]
+    nq = q.shape[0]
     for l in range(K[_NL][f]):
-        pl = K[_PAR][f, l]
+        pl = parent[f, l]
         if pl < 0:
             for i in range(4):
                 for j in range(4):
-                    poses[l, i, j] = K[_PRE][f, l, i, j]
+                    poses[l, i, j] = pre[f, l, i, j]
         else:
-            _compose(poses[pl], K[_PRE][f, l], poses[l])
-        start = K[_MS][f, l]
-        for m in range(start, start + K[_MC][f, l]):
-            k = K[_MI][m]
-            value = full_b[k] - K[_MR][m]
-            for j in range(q.shape[0]):
-                value += full_a[k, j] * q[j]
-            _motion(K[_MK][m], K[_MAX][m], K[_MAN][m], value, local)
-            _compose(poses[l], local, tmp)
-            for i in range(4):
+            for i in range(3):
+                a0, a1, a2, a3 = poses[pl, i, 0], poses[pl, i, 1], poses[pl, i, 2], poses[pl, i, 3]
                 for j in range(4):
-                    poses[l, i, j] = tmp[i, j]
+                    v = a0 * pre[f, l, 0, j] + a1 * pre[f, l, 1, j] + a2 * pre[f, l, 2, j]
+                    if j == 3:
+                        v += a3
+                    poses[l, i, j] = v
+            poses[l, 3, 0] = 0.0
+            poses[l, 3, 1] = 0.0
+            poses[l, 3, 2] = 0.0
+            poses[l, 3, 3] = 1.0
+        start = m_start[f, l]
+        for m in range(start, start + m_count[f, l]):
+            k = m_index[m]
+            value = full_b[k] - m_ref[m]
+            for j in range(nq):
+                value += full_a[k, j] * q[j]
+            x, y, z = m_axis[m, 0], m_axis[m, 1], m_axis[m, 2]
+            if m_kind[m] == 1:  # prismatic: a translation by value along the axis
+                r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+                t0, t1, t2 = value * x, value * y, value * z
+            else:
+                sn, cs = math.sin(value), math.cos(value)
+                t = 1.0 - cs
+                r00 = cs + x * x * t
+                r01 = x * y * t - z * sn
+                r02 = x * z * t + y * sn
+                r10 = y * x * t + z * sn
+                r11 = cs + y * y * t
+                r12 = y * z * t - x * sn
+                r20 = z * x * t - y * sn
+                r21 = z * y * t + x * sn
+                r22 = cs + z * z * t
+                ax, ay, az = m_anchor[m, 0], m_anchor[m, 1], m_anchor[m, 2]
+                t0 = ax - (r00 * ax + r01 * ay + r02 * az)
+                t1 = ay - (r10 * ax + r11 * ay + r12 * az)
+                t2 = az - (r20 * ax + r21 * ay + r22 * az)
+            for i in range(3):
+                a0, a1, a2, a3 = poses[l, i, 0], poses[l, i, 1], poses[l, i, 2], poses[l, i, 3]
+                poses[l, i, 0] = a0 * r00 + a1 * r10 + a2 * r20
+                poses[l, i, 1] = a0 * r01 + a1 * r11 + a2 * r21
+                poses[l, i, 2] = a0 * r02 + a1 * r12 + a2 * r22
+                poses[l, i, 3] = a0 * t0 + a1 * t1 + a2 * t2 + a3
 
 
 @_jit
 def _point(rot, trans, pose, p, out):
     """out = rot @ (pose @ p) + trans (object frame)."""
+    _point_xyz(rot, trans, pose, p[0], p[1], p[2], out)
+
+
+@_jit
+def _point_xyz(rot, trans, pose, px, py, pz, out):
+    """:func:`_point` of the point (px, py, pz): callers pass a table's elements, not a view of its row."""
     for i in range(3):
-        out[i] = pose[i, 0] * p[0] + pose[i, 1] * p[1] + pose[i, 2] * p[2] + pose[i, 3]
+        out[i] = pose[i, 0] * px + pose[i, 1] * py + pose[i, 2] * pz + pose[i, 3]
     x, y, z = out[0], out[1], out[2]
     for i in range(3):
         out[i] = rot[i, 0] * x + rot[i, 1] * y + rot[i, 2] * z + trans[i]
 
 
 @_jit
-def _groups_clearance(values, origin, spacing, rot, trans, pose, g0, g1, K, cutoff, c):
-    """Least clearance (sdf - radius, m) of the spheres of groups g0..g1-1 of a link at ``pose``."""
+def _point_at(rot, trans, poses, l, px, py, pz, out):
+    """:func:`_point_xyz` with the pose ``poses[l]`` read in place."""
+    for i in range(3):
+        out[i] = poses[l, i, 0] * px + poses[l, i, 1] * py + poses[l, i, 2] * pz + poses[l, i, 3]
+    x, y, z = out[0], out[1], out[2]
+    for i in range(3):
+        out[i] = rot[i, 0] * x + rot[i, 1] * y + rot[i, 2] * z + trans[i]
+
+
+@_inline
+def _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g1, K, cutoff, c, first_touch=False):
+    """Least clearance (sdf - radius, m) of the spheres of groups g0..g1-1 of a link at
+    ``poses[l]``; ``first_touch``: returns at the first sphere at or below 0 (only the sign is
+    wanted: the closing sweep)."""
     ox, oy, oz = origin[0], origin[1], origin[2]
     inv = 1.0 / spacing
+    grc, sc = K[_GRCEN], K[_SC]
     best = np.inf
     for g in range(g0, g1):
-        _point(rot, trans, pose, K[_GRCEN][g], c)
+        _point_at(rot, trans, poses, l, grc[g, 0], grc[g, 1], grc[g, 2], c)
         d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_GRR][g]
         if d > cutoff:
             best = min(best, d)
             continue
         s0 = K[_GRS][g]
         for s in range(s0, s0 + K[_GRC][g]):
-            _point(rot, trans, pose, K[_SC][s], c)
+            _point_at(rot, trans, poses, l, sc[s, 0], sc[s, 1], sc[s, 2], c)
             d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_SR][s]
             best = min(best, d)
+            if first_touch and best <= 0.0:
+                return best
     return best
 
 
-@_jit
+@_inline
 def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, link_out, c, moving_only=False):
     """Least clearance over finger f's links (posed), per link into link_out (Lmax,);
     ``moving_only``: only the links the closing moves (the others keep link_out)."""
@@ -145,14 +166,15 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
         if K[_LR][f, l] < 0.0:
             link_out[l] = np.inf
             continue
-        _point(rot, trans, poses[l], K[_LC][f, l], c)
+        _point_at(rot, trans, poses, l, K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
         d = _grid_distance(values, ox, oy, oz, 1.0 / spacing, spacing, c[0], c[1], c[2]) - K[_LR][f, l]
         if d > cutoff:
             link_out[l] = d
             best = min(best, d)
             continue
         g0 = K[_GS][f, l]
-        d = _groups_clearance(values, origin, spacing, rot, trans, poses[l], g0, g0 + K[_GC][f, l], K, cutoff, c)
+        d = _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g0 + K[_GC][f, l], K, cutoff, c,
+                              moving_only and K[_PADB][f, l] == 0)
         if K[_PADB][f, l]:
             # The pad link's cover (and that of links fixed to it: one body) may enter by
             # its stray (it lies outside the exact surface); the pad sphere (the exact
@@ -165,7 +187,7 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
     return best
 
 
-@_jit
+@_inline
 def _set_closing(q, q0, f, K, s):
     for k in range(K[_JC][f]):
         target = K[_JT][f, k]
@@ -174,11 +196,11 @@ def _set_closing(q, q0, f, K, s):
             q[j] = q0[j] + s * (target - q0[j])
 
 
-@_jit
+@_inline
 def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
     """Pad sphere's centre (object frame) into pad_pos (3,); returns its clearance (sdf -
     pad radius, m): 0 when the pad touches the surface."""
-    _point(rot, trans, poses[K[_PADL][f]], K[_PADC][f], pad_pos)
+    _point_at(rot, trans, poses, K[_PADL][f], K[_PADC][f, 0], K[_PADC][f, 1], K[_PADC][f, 2], pad_pos)
     return _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing,
                           pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]
 
@@ -349,6 +371,6 @@ def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, c
         best = np.inf
         for i in range(groups.shape[0]):
             g = groups[i]
-            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose[i], g, g + 1, K, cutoff, c)
+            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose, i, g, g + 1, K, cutoff, c)
             best = min(best, d)
         out[p] = best

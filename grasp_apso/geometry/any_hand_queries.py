@@ -82,7 +82,8 @@ def _segments(shapes: HandShapes, poses: np.ndarray, parts: np.ndarray) -> tuple
 def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np.ndarray, b: np.ndarray,
                         below: float) -> np.ndarray:
     """Signed distances (m) of the part pairs (a[i], b[i]); pairs that cannot come below
-    ``below`` are left at a lower bound (their bounding spheres' gap), not measured.
+    ``below`` are left at a lower bound (their bounding spheres' gap, or for a pair with a
+    mesh part, the gap between the parts' convex hulls), not measured.
 
     Rounded pairs in closed form (segment distance minus the radii, in one batch); the
     others fcl (``objs`` this thread's part objects, placed at ``poses``), then samples."""
@@ -97,8 +98,23 @@ def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np
         centre = np.einsum("kij,kj->ki", poses[:, :3, :3], shapes.bound_centre) + poses[:, :3, 3]
         ra, rb = a[rest], b[rest]
         out[rest] = np.linalg.norm(centre[ra] - centre[rb], axis=1) - shapes.bound_radius[ra] - shapes.bound_radius[rb]
+        hulls = None
         for idx in rest[out[rest] < below]:
             i, j = int(a[idx]), int(b[idx])
+            if not (shapes.primitive[i] and shapes.primitive[j]):
+                # The parts' hulls first: apart, they bound the pair's distance from below
+                # (a mesh pair's BVHs take milliseconds, their hulls microseconds).
+                if hulls is None:
+                    hulls = shapes.hull_objects()
+                    placed: set[int] = set()
+                for k in (i, j):
+                    if k not in placed:
+                        hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
+                        placed.add(k)
+                d = fcl_distance(hulls[i], hulls[j])
+                if d > max(below, TOUCH_EPS):
+                    out[idx] = d
+                    continue
             d = fcl_distance(objs[i], objs[j])
             if d <= TOUCH_EPS:
                 d = solid_pair(shapes.geoms[i], poses[i], shapes.samples[i], shapes.geoms[j], poses[j],
@@ -113,10 +129,11 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
 
     ``object_pose`` (4, 4): the object frame in the query frame (None: the same frame).
     First GJK against the object's convex hull (a solid ``fcl.Convex``: quick, a lower
-    bound for a non-convex object, within ~0.4 mm for a convex one); parts it finds within
-    ``exact_within`` (m) are measured exactly: on the BVH, a sphere by the mesh's exact
-    signed distance at its centre. Beyond it the value is the hull's: a lower bound (for a
-    convex object, within ~0.4 mm). fcl finds a part wholly inside a
+    bound for a non-convex object, within ~0.4 mm for a convex one), a mesh part's own
+    convex hull first (a mesh part whose hull stays ``exact_within`` away keeps that
+    lower bound); parts it finds within ``exact_within`` (m) are measured exactly: on the
+    BVH, a sphere by the mesh's exact signed distance at its centre. Beyond it the value
+    is a lower bound (a primitive against a convex object: within ~0.4 mm). fcl finds a part wholly inside a
     non-convex mesh (a hollow surface to fcl) apart: one sample per part decides, in one
     batch; a mesh part holding the object wholly: one object vertex decides. Touching
     parts then get their depth from their samples."""
@@ -129,7 +146,17 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     for o in (target, hull):
         o.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
     inflate = np.array([shapes.samples[k][1] for k in parts])
+    far = np.zeros(len(parts), dtype=bool)
+    hulls = shapes.hull_objects() if not shapes.primitive[parts].all() else None
     for i, k in enumerate(parts):
+        if hulls is not None and not shapes.primitive[k]:
+            # The part's hull against the object's: a lower bound in microseconds; a mesh
+            # part's BVH against the hull only where that bound is within exact_within.
+            hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
+            out[i] = fcl_distance(hulls[k], hull)
+            far[i] = out[i] >= exact_within
+            if far[i]:
+                continue
         out[i] = fcl_distance(objs[k], hull)
     deep = out <= TOUCH_EPS
     refine = np.flatnonzero((out < exact_within) & (~deep if shape.convex else True))
@@ -149,7 +176,7 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     vertex = to_frame(pose, shape.vertices[:1])[0]
     centre = np.einsum("kij,kj->ki", poses[parts, :3, :3], shapes.bound_centre[parts]) + poses[parts, :3, 3]
     holds = (np.linalg.norm(centre - vertex, axis=1) <= shapes.bound_radius[parts]) & ~shapes.primitive[parts]
-    for i in np.flatnonzero(holds & ~deep):  # a (hollow) mesh part around the object?
+    for i in np.flatnonzero(holds & ~deep & ~far):  # a (hollow) mesh part around the object?
         k = parts[i]
         deep[i] = _sdf(shapes.geoms[k], poses[k], vertex[None])[0] < 0.0
     ball = (to_frame(pose, shape.centre[None])[0], shape.radius)

@@ -16,7 +16,7 @@ import math
 import numba
 import numpy as np
 
-from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point
+from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point, _point_xyz
 
 __all__ = ["scene_margins", "APPROACH_FRACTIONS"]
 
@@ -27,11 +27,15 @@ APPROACH_FRACTIONS = (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0)
 SCENE_CUTOFF = 0.0
 
 _jit = numba.njit(cache=True, nogil=True)
+#: Helpers that take the kinematic and scene tuples are inlined (see any_hand_kernels._inline).
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 
-@_jit
-def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half):
-    """Least signed distance (m) of point c (3,) to the scene's solids (as Scene.signed_distance)."""
+@_inline
+def _scene_distance(c, S):
+    """Least signed distance (m) of point c (3,) to the scene's solids (as
+    Scene.signed_distance); ``S`` the arrays of :func:`packed_scene`."""
+    planes, box_inv, box_half, sphere_center, sphere_radius, cyl_inv, cyl_radius, cyl_half = S
     best = np.inf
     for k in range(planes.shape[0]):
         best = min(best, planes[k, 0] * c[0] + planes[k, 1] * c[1] + planes[k, 2] * c[2] + planes[k, 3])
@@ -48,31 +52,31 @@ def _scene_distance(c, planes, box_inv, box_half, sphere_center, sphere_radius, 
                       + (c[2] - sphere_center[k, 2]) ** 2)
         best = min(best, d - sphere_radius[k])
     for k in range(cyl_inv.shape[0]):
-        v = np.empty(3)
-        for i in range(3):
-            v[i] = cyl_inv[k, i, 0] * c[0] + cyl_inv[k, i, 1] * c[1] + cyl_inv[k, i, 2] * c[2] + cyl_inv[k, i, 3]
-        radial = math.sqrt(v[0] ** 2 + v[1] ** 2) - cyl_radius[k]
-        axial = abs(v[2]) - cyl_half[k]
+        v0 = cyl_inv[k, 0, 0] * c[0] + cyl_inv[k, 0, 1] * c[1] + cyl_inv[k, 0, 2] * c[2] + cyl_inv[k, 0, 3]
+        v1 = cyl_inv[k, 1, 0] * c[0] + cyl_inv[k, 1, 1] * c[1] + cyl_inv[k, 1, 2] * c[2] + cyl_inv[k, 1, 3]
+        v2 = cyl_inv[k, 2, 0] * c[0] + cyl_inv[k, 2, 1] * c[1] + cyl_inv[k, 2, 2] * c[2] + cyl_inv[k, 2, 3]
+        radial = math.sqrt(v0 ** 2 + v1 ** 2) - cyl_radius[k]
+        axial = abs(v2) - cyl_half[k]
         best = min(best, math.sqrt(max(radial, 0.0) ** 2 + max(axial, 0.0) ** 2) + min(max(radial, axial), 0.0))
     return best
 
 
-@_jit
+@_inline
 def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
     best = np.inf
     for g in range(g0, g1):
-        _point(rot, trans, pose, K[_GRCEN][g], c)
-        d = _scene_distance(c, *S) - K[_GRR][g]
+        _point_xyz(rot, trans, pose, K[_GRCEN][g, 0], K[_GRCEN][g, 1], K[_GRCEN][g, 2], c)
+        d = _scene_distance(c, S) - K[_GRR][g]
         if d > cutoff:
             best = min(best, d)
             continue
         for s in range(K[_GRS][g], K[_GRS][g] + K[_GRC][g]):
-            _point(rot, trans, pose, K[_SC][s], c)
-            best = min(best, _scene_distance(c, *S) - K[_SR][s])
+            _point_xyz(rot, trans, pose, K[_SC][s, 0], K[_SC][s, 1], K[_SC][s, 2], c)
+            best = min(best, _scene_distance(c, S) - K[_SR][s])
     return best
 
 
-@_jit
+@_inline
 def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c):
     """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4))."""
     best = np.inf
@@ -80,8 +84,8 @@ def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cu
         for l in range(K[_NL][f]):
             if K[_LR][f, l] < 0.0:
                 continue
-            _point(rot, trans, poses[f, l], K[_LC][f, l], c)
-            d = _scene_distance(c, *S) - K[_LR][f, l]
+            _point_xyz(rot, trans, poses[f, l], K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
+            d = _scene_distance(c, S) - K[_LR][f, l]
             if d > cutoff:
                 best = min(best, d)
                 continue
@@ -90,7 +94,7 @@ def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cu
     if palm_bound[3] >= 0.0:
         eye = np.eye(4)
         _point(rot, trans, eye, palm_bound[:3], c)
-        d = _scene_distance(c, *S) - palm_bound[3]
+        d = _scene_distance(c, S) - palm_bound[3]
         if d > cutoff:
             return min(best, d)
         for i in range(palm_groups.shape[0]):

@@ -231,8 +231,28 @@ class HandShapes:
         return _PART_OBJECTS.get(self, lambda s: [fcl.CollisionObject(g, fcl.Transform())
                                                   for g in s.fcl_geometries])
 
+    @cached_property
+    def hull_geometries(self) -> tuple:
+        """Per part, a solid that holds it for a quick lower bound: a mesh part's convex
+        hull as an ``fcl.Convex`` (GJK: microseconds where the BVH of a 20,000-triangle CAD
+        link takes milliseconds), a primitive itself."""
+        out = []
+        for i, geometry in enumerate(self.fcl_geometries):
+            if i in self.hull_vertices:
+                hull = self.geoms[i].mesh.convex_hull
+                faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel().astype(np.int32)
+                geometry = fcl.Convex(np.asarray(hull.vertices, dtype=float), len(hull.faces), faces)
+            out.append(geometry)
+        return tuple(out)
+
+    def hull_objects(self) -> list:
+        """This thread's fcl collision objects of :attr:`hull_geometries` (moved with setTransform)."""
+        return _HULL_OBJECTS.get(self, lambda s: [fcl.CollisionObject(g, fcl.Transform())
+                                                  for g in s.hull_geometries])
+
 
 _PART_OBJECTS: "PerThreadCache[list]" = PerThreadCache(max_entries=8)
+_HULL_OBJECTS: "PerThreadCache[list]" = PerThreadCache(max_entries=8)
 
 
 def hand_shapes(hand: HandModel) -> HandShapes:

@@ -1,0 +1,103 @@
+"""The general hand's compiled kernels against independent references: the forward
+kinematics of :func:`grasp_apso.geometry.any_hand_kernels.link_poses` against the hand
+model's own (numpy, ``HandModel.link_transforms_batch``), the scene kernel's point distance
+against ``Scene.signed_distance``, and the python-fcl pair distances with their
+convex-hull bound against fcl's BVH distance of the exact meshes."""
+
+from __future__ import annotations
+
+import fcl
+import numba
+import numpy as np
+import pytest
+
+from grasp_apso.geometry import any_hand_kernels as hk
+from grasp_apso.geometry.any_hand_fcl import HandCollision
+from grasp_apso.geometry.any_hand_queries import part_pair_distances
+from grasp_apso.geometry.any_hand_scene import _scene_distance, packed_scene
+from grasp_apso.geometry.any_hand_shapes import TOUCH_EPS
+from grasp_apso.geometry.any_hand_tables import hand_tables
+from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.scene import BOX, CYLINDER, SPHERE, Obstacle, Scene
+from hand_files import installed_hand, write_allegro_like
+
+#: GJK's distance between separated convex shapes can exceed the exact one by this (m).
+GJK_TOL = 2e-5
+
+
+@pytest.fixture(scope="module")
+def hands(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("hands")
+    return {"shadow": load_hand(installed_hand("shadow")), "inspire": load_hand(installed_hand("inspire")),
+            "allegro_like": load_hand(write_allegro_like(folder / "a", "mixed"))}
+
+
+@pytest.mark.parametrize("name", ["shadow", "inspire", "allegro_like"])
+def test_compiled_finger_poses_match_the_hand_models_kinematics(hands, name):
+    """Every finger link's pose (root frame) at seeded random postures, couplings included."""
+    hand = hands[name]
+    t = hand_tables(hand)
+    q = np.random.default_rng(3).uniform(hand.lower, hand.upper, (40, hand.n_joints))
+    out = np.empty((len(q), t.n_fingers, t.finger_link.shape[1], 4, 4))
+    hk.link_poses(np.ascontiguousarray(q), hk.kin(t), out)
+    expected = hand.link_transforms_batch(q)
+    checked = 0
+    for f in range(t.n_fingers):
+        for l in range(int(t.n_links[f])):
+            np.testing.assert_allclose(out[:, f, l], expected[:, t.finger_link[f, l]], atol=1e-12)
+            checked += 1
+    assert checked >= 15
+    # the postures move the links: the check is not of a constant
+    assert np.ptp(out[:, 0, int(t.n_links[0]) - 1, :3, 3], axis=0).max() > 0.01
+
+
+def test_mesh_pairs_keep_the_bvh_distance_or_a_hull_bound_below_it(hands):
+    """Inspire's links are CAD meshes: a pair whose hulls stay farther than ``below`` apart
+    keeps the hulls' gap, never more than the meshes' (fcl BVH) gap; the others the BVH
+    distance itself."""
+    hc = HandCollision(hands["inspire"])
+    a, b = hc.shapes.pair_candidates
+    rng = np.random.default_rng(5)
+    below = 0.01
+    bounded = exact = 0
+    for _ in range(6):
+        q = rng.uniform(hc.hand.lower, hc.hand.upper)
+        poses = hc.part_poses(q, np.eye(4))
+        objs = hc.place(poses)
+        got = part_pair_distances(hc.shapes, objs, poses, a, b, below)
+        for i, j, d in zip(a, b, got):
+            bvh = float(fcl.distance(objs[i], objs[j], fcl.DistanceRequest(), fcl.DistanceResult()))
+            if bvh <= TOUCH_EPS:
+                assert d <= 0.0
+            elif d < below:
+                assert d == pytest.approx(bvh, abs=1e-9)
+                exact += 1
+            else:  # GJK converges from above: within its tolerance (micrometres) of the hulls' gap
+                assert d <= bvh + GJK_TOL
+                bounded += 1
+    assert exact >= 4 and bounded >= 20, (exact, bounded)
+
+
+def test_compiled_scene_distance_matches_the_scene():
+    """The scene kernel's point distance against ``Scene.signed_distance`` (numpy) at seeded
+    points around a table, a box, a sphere and a cylinder (posed, rotated)."""
+    @numba.njit(cache=False)
+    def distances(points, S):
+        out = np.empty(points.shape[0])
+        for n in range(points.shape[0]):
+            out[n] = _scene_distance(points[n], S)
+        return out
+
+    turn = np.eye(4)
+    turn[:3, :3] = [[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]
+    obstacles = []
+    for kind, dims, centre in ((BOX, (0.04, 0.02, 0.06), (0.1, 0.0, 0.05)), (SPHERE, (0.03,), (-0.1, 0.0, 0.05)),
+                               (CYLINDER, (0.08, 0.02), (0.0, 0.1, 0.05))):
+        pose = turn.copy()
+        pose[:3, 3] = centre
+        obstacles.append(Obstacle(kind, dims, pose))
+    scene = Scene(planes=np.array([[0.0, 0.0, 1.0, 0.0]]), obstacles=tuple(obstacles))
+    points = np.random.default_rng(2).uniform([-0.15, -0.05, -0.02], [0.15, 0.15, 0.12], (3000, 3))
+    got = distances(points, packed_scene(scene))
+    np.testing.assert_allclose(got, scene.signed_distance(points), atol=1e-12)
+    assert (got < 0).sum() > 50  # some points inside the solids
