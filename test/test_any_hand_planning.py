@@ -1,6 +1,8 @@
-"""Planning with general hands (issue 21): the Allegro-like URDF hand, the Shadow hand and
-the Inspire hand, on the built-in cube, sphere and barrel and the real mug, each resting on
-a table.
+"""Planning with general hands (issue 21): the Allegro-like URDF hand, the Shadow hand, the
+Inspire hand and the paper's own hand read from its URDF (``urdf/apso_paper_hand.urdf``: five
+fingers, mimic couplings, a fingertip sphere fixed to each distal link) through the same
+general path, on the built-in cube, sphere and barrel and the real mug, each resting on a
+table.
 
 Every returned grasp is checked independently of the planner's code: joint limits from the
 hand model; the pads (spheres of ``pad_radius`` whose surface passes through the pad point,
@@ -29,7 +31,7 @@ from hand_files import installed_hand, write_allegro_like
 
 ROOT = Path(__file__).resolve().parents[1]
 OBJECTS = ("cube", "sphere", "barrel", "mug")
-HANDS = ("allegro", "shadow", "inspire")
+HANDS = ("allegro", "shadow", "inspire", "paper_urdf")
 SEEDS = (0, 1)
 OPTIONS = PlanOptions(particles=30, iterations=20, max_grasps=3)
 PAD_TOLERANCE = 0.002
@@ -42,6 +44,7 @@ def hands(tmp_path_factory):
         "allegro": load_hand(write_allegro_like(folder, "mixed")),
         "shadow": load_hand(installed_hand("shadow")),
         "inspire": load_hand(installed_hand("inspire")),
+        "paper_urdf": load_hand(ROOT / "urdf" / "apso_paper_hand.urdf"),
     }
 
 
