@@ -5,8 +5,16 @@ again and taken in descending fitness: each gets the Ferrari-Canny epsilon and f
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
 of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
-there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`; with ``simulate`` each is
-checked in MuJoCo (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`).
+there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`, where a *balanced* force-closure
+grasp counts as robust: the servos' squeezing forces along the contact normals can cancel
+(:func:`grasp_apso.quality.closing.closing_forces`, imbalance at most
+:data:`MAX_IMBALANCE`), so the closing does not shove or roll the object. Up to
+:data:`SPARE` times ``max_grasps`` distinct grasps are verified so that balanced ones can
+be found. Each candidate's squeeze exerts those balanced forces at its pads
+(``q + J^T f / kp``, :func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
+``simulate`` the verified grasps are checked in MuJoCo
+(:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
+held or all were tried.
 """
 
 from __future__ import annotations
@@ -19,7 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PlanningError
+from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
+from ..quality.robustness import robust_epsilon
 from .archive import wrists_distinct
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -28,6 +38,13 @@ __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture"]
 
 #: The squeeze (rad or m) when the simulation settings are not importable.
 SQUEEZE = math.radians(8.0)
+#: Largest closing imbalance (net wrench of the squeezing forces / their sum) of a grasp
+#: ranked as robust: friction (mu 0.5) absorbs a net force of up to about mu times the total,
+#: half of it leaves a margin for the fingers that touch first.
+MAX_IMBALANCE = 0.25
+#: Distinct grasps verified per requested one (balanced ones are looked for among them;
+#: with ``simulate`` they are simulated best first until ``max_grasps`` held).
+SPARE = 3
 
 
 @dataclass
@@ -43,6 +60,15 @@ class AnyChecked:
     scene_distance: float
     fcl: object | None
     note: str = ""
+    imbalance: float = 1.0
+    squeeze: np.ndarray | None = None
+    robust_epsilon: float = 0.0
+
+    @property
+    def balanced(self) -> bool:
+        """Robust force closure (it survives the normals' spread at edges and corners)
+        whose squeezing forces can cancel: ranked as robust."""
+        return self.force_closure and self.robust_epsilon > 0.0 and self.imbalance <= MAX_IMBALANCE
 
 
 def _module(name: str):
@@ -57,11 +83,15 @@ def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, f
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
-    eps, closure = 0.0, False
+    eps, closure, robust = 0.0, False, 0.0
     if mask.sum() >= 2:
         eps, closure = epsilon_quality(decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
                                        np.asarray(obj.center_of_mass, float), options.friction,
                                        torque_scale=float(obj.characteristic_radius))
+        if closure:
+            robust = float(robust_epsilon(obj, decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
+                                          mu=options.friction, edges=options.friction_edges,
+                                          torque_scale=float(obj.characteristic_radius)))
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
     distance, report, note = math.inf, None, ""
     if fcl_api is not None:
@@ -78,13 +108,42 @@ def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, f
             scene_clear = scene_clear and distance >= options.clearance and not path.hits_object
     else:
         note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
+    imbalance, squeeze = _closing(model, decoded, obj)
     return AnyChecked(decoded, float(fitness), float(eps), bool(closure), bool(legal and mask.sum() >= 2),
-                      scene_clear, distance, report, note)
+                      scene_clear, distance, report, note, imbalance, squeeze, robust)
+
+
+def _sim_settings():
+    settings = _module("grasp_apso.simulation.settings")
+    return settings.SimulationSettings() if settings is not None else None
+
+
+def _closing(model, decoded, obj) -> tuple[float, np.ndarray]:
+    """The closing imbalance of one decoded grasp and its squeezed posture (n,): the
+    balanced forces at the pads (mean ``squeeze_force``), exerted through the servos' gain;
+    without contacts the uniform squeeze."""
+    mask = decoded.contact[0]
+    q = decoded.q[0]
+    settings = _sim_settings()
+    if mask.sum() < 2 or settings is None:
+        return 1.0, squeeze_posture(model, q)
+    fingers = np.flatnonzero(mask)
+    points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
+    forces, imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
+                                       float(obj.characteristic_radius), settings.squeeze_force)
+    inv = np.linalg.inv(decoded.root[0])  # object -> root frame
+    points_root = points @ inv[:3, :3].T + inv[:3, 3]
+    normals_root = normals @ inv[:3, :3].T
+    squeeze = squeeze_toward_forces(model.hand, q, fingers, points_root, normals_root, forces, settings.kp,
+                                    settings.max_torque)
+    return imbalance, squeeze
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tuple[list[AnyChecked], str]:
-    """Verified candidates (best fitness first): valid and (with a scene) clear of it, up
-    to ``max_grasps``; without a scene at least the best one even when not valid."""
+    """Verified candidates: valid and (with a scene) clear of it, up to :data:`SPARE`
+    times ``max_grasps`` in descending fitness, then the balanced ones first (stable);
+    without ``simulate`` the first ``max_grasps`` of them. Without a scene at least the
+    best one even when not valid."""
     pool = [np.clip(swarm.best, model.lower, model.upper)]
     if len(archive):
         pool.extend(archive.x)
@@ -97,8 +156,9 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
     rejected = 0
+    wanted = SPARE * options.max_grasps
     for i in order:
-        if len(kept) >= options.max_grasps:
+        if len(kept) >= wanted:
             break
         one = decoded.take(np.array([i]))
         if kept and not all(wrists_distinct(c.decoded.wrist[0, :3, :3], c.decoded.wrist[0, :3, 3],
@@ -118,6 +178,9 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
                 f"hand {model.hand.name!r} is valid and keeps the clearance ({options.clearance * 1000:.1f} mm) "
                 "from the support planes and obstacles at the grasp and along the approach", "scene")
         kept = [first]
+    kept.sort(key=lambda c: not c.balanced)  # stable: by fitness within each group
+    if not options.simulate:
+        kept = kept[:options.max_grasps]
     message = ""
     if len(kept) < options.max_grasps:
         message = (f"{len(kept)} of {options.max_grasps} grasps: the search kept {len(archive)} distinct leaders, "
@@ -142,20 +205,31 @@ def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
     return np.clip(out, hand.lower, hand.upper)
 
 
-def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, str]:
+def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
+    """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
+    was tried, or ``should_stop``). Returns the grasps to rank (every held one, then the
+    first dropped or unsimulated ones up to ``max_grasps``), their results (None: not
+    simulated) and a note."""
     sim = _module("grasp_apso.simulation.any_hand")
     if sim is None:
-        return [None] * len(checked), "simulate: the MuJoCo check of a general hand is not available"
-    out = []
+        return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
+            "simulate: the MuJoCo check of a general hand is not available"
+    held, other = [], []
+    stopped = False
     for c in checked:
-        if should_stop is not None and should_stop():
-            out.append(None)
+        if len(held) >= options.max_grasps:
+            break
+        if stopped or (should_stop is not None and should_stop()):
+            stopped = True
+            other.append((c, None))
             continue
         d = c.decoded
-        out.append(sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
-                                         squeeze_posture(model, d.q[0]), scene, options.friction,
-                                         should_stop=should_stop))
-    return out, ""
+        result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                                       c.squeeze, scene, options.friction, should_stop=should_stop)
+        (held if result.held else other).append((c, result))
+    chosen = held + other[:max(0, options.max_grasps - len(held))]
+    note = "simulation stopped at the time bound" if stopped else ""
+    return [c for c, _ in chosen], [r for _, r in chosen], note
 
 
 def build_result(model, checked, message, swarm, problem, options, pose, shape, preparation, t1, obj, scene,
@@ -164,12 +238,13 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
     hand, t = model.hand, model.tables
     sims = None
     if options.simulate:
-        sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
+        checked, sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
         if note:
             message = (message + "; " if message else "") + note
     held = None if sims is None else np.array([s is not None and s.held for s in sims])
     quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
-                            np.array([c.force_closure for c in checked]), held)
+                            np.array([c.force_closure for c in checked]), held,
+                            robust=np.array([c.balanced for c in checked]))
     order = rank_order(quality, np.array([c.epsilon for c in checked]))
     rot, trans = pose[:3, :3], pose[:3, 3]
     candidates = []
@@ -191,7 +266,7 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
             sim_max_shift=math.nan if sim is None else float(sim.max_shift),
             sim_max_turn=math.nan if sim is None else float(sim.max_turn),
             wrist_in_object=d.root[0].copy(), joints=np.zeros((0, 4, 3)), pre_grasp_joints=np.zeros((0, 4, 3)),
-            squeeze_positions=squeeze_posture(model, d.q[0])))
+            squeeze_positions=c.squeeze.copy()))
     top, best = checked[int(order[0])], candidates[0]
     d = top.decoded
     return GraspResult(
