@@ -72,8 +72,13 @@ def closing_forces(points: np.ndarray, normals: np.ndarray, center: np.ndarray, 
 
 def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root: np.ndarray,
                           normals_root: np.ndarray, forces: np.ndarray, kp: float,
-                          max_torque: float | None = None, step: float = 1e-4) -> np.ndarray:
-    """The squeezed posture: ``q + (sum_i J_i^T f_i (-n_i)) / kp`` within the limits.
+                          max_torque: float | None = None, gaps: np.ndarray | None = None,
+                          step: float = 1e-4) -> np.ndarray:
+    """The squeezed posture: ``q + sum_i [J_i^+ (g_i u_i) + J_i^T f_i u_i / kp]`` within
+    the limits, with ``u_i = -n_i`` (into the object) and ``J_i^+ (g u) = J^T u g / |J^T u|^2``
+    the least joint motion that moves pad i by its gap ``g_i`` along ``u_i``: a pad that
+    already penetrates the exact geometry by 4 mm would otherwise press with the force of
+    4 mm of servo error more than the others, and one 4 mm short would touch last.
 
     Parameters
     ----------
@@ -89,6 +94,8 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
         The servos' position gain.
     max_torque : float, N m, optional
         The servos' torque limit: each joint's torque is clipped to it.
+    gaps : (N,) float, m, optional
+        Each pad's distance to the surface at q (negative: penetrating); 0 when None.
     step : float
         Finite-difference step of the Jacobian (rad or m).
     """
@@ -97,14 +104,20 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
     batch = np.vstack([q, q + step * np.eye(n)])
     poses = hand.link_transforms_batch(batch)  # (n + 1, L, 4, 4)
     tau = np.zeros(n)
-    for f_index, p, nrm, force in zip(fingers, np.asarray(points_root, float), np.asarray(normals_root, float),
-                                      np.asarray(forces, float)):
+    reach = np.zeros(n)
+    gaps = np.zeros(len(forces)) if gaps is None else np.asarray(gaps, float)
+    for f_index, p, nrm, force, gap in zip(fingers, np.asarray(points_root, float), np.asarray(normals_root, float),
+                                           np.asarray(forces, float), gaps):
         link = hand.link_index(hand.fingers[int(f_index)].pad_link)
         base = poses[0, link]
         local = np.linalg.solve(base, np.append(p, 1.0))  # the point, fixed on its link
         moved = poses[1:, link] @ local  # (n, 4)
         jac = (moved[:, :3] - p) / step  # (n, 3): d point / d q_j
-        tau += jac @ (-force * np.asarray(nrm, float))
+        along = jac @ (-np.asarray(nrm, float))  # (n,): J^T u
+        tau += force * along
+        norm2 = float(along @ along)
+        if norm2 > 1e-12:
+            reach += along * (gap / norm2)
     if max_torque is not None:
         tau = np.clip(tau, -max_torque, max_torque)
-    return np.clip(q + tau / float(kp), hand.lower, hand.upper)
+    return np.clip(q + reach + tau / float(kp), hand.lower, hand.upper)
