@@ -145,3 +145,31 @@ def test_simulate_puts_a_held_grasp_first_on_the_shadow_hand(shadow_cube):
     again = simulate_any_hand(hand, obj, np.eye(4), best.wrist_pose, best.pre_grasp_positions, best.joint_positions,
                               best.squeeze_positions, scene, 0.5)
     assert again.held and again.max_turn < math.radians(15.0) and again.max_shift < 0.05
+
+
+def test_squeeze_takes_up_a_pad_gap_along_the_normal(allegro):
+    hand = allegro
+    q = 0.5 * (np.asarray(hand.lower) + np.asarray(hand.upper))
+    poses = hand.link_transforms(q)
+    finger = hand.fingers[0]
+    pad = (poses[finger.pad_link] @ np.append(finger.pad_center, 1.0))[:3]
+    normal = -np.asarray(hand.palm_normal, float)  # any direction the finger can reach along
+    for gap in (0.002, -0.002):  # 2 mm short of the surface, 2 mm deep in it
+        squeezed = squeeze_toward_forces(hand, q, [0], pad[None], normal[None], [0.0], kp=2.0, gaps=[gap])
+        moved = hand.link_transforms(squeezed)[finger.pad_link] @ np.linalg.inv(poses[finger.pad_link])
+        shift = (moved @ np.append(pad, 1.0))[:3] - pad
+        assert np.dot(shift, -normal) == pytest.approx(gap, rel=0.15)
+
+
+def test_opened_pre_grasp_moves_closing_joints_to_their_opening_limits(allegro):
+    from grasp_apso.search.any_hand_select import opened
+
+    hand = allegro
+    q = 0.5 * (np.asarray(hand.lower) + np.asarray(hand.upper))
+    wide = opened(hand, q, 1.0)
+    assert np.array_equal(opened(hand, q, 0.0), q)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            j = hand.actuated_joints.index(joint)
+            expected = q[j] if sense == 0 else (hand.lower[j] if sense > 0 else hand.upper[j])
+            assert wide[j] == pytest.approx(expected), joint
