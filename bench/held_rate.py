@@ -222,7 +222,7 @@ def run_any_case(task: tuple) -> dict:
             "nominal_epsilon": nominal, "robust_epsilon": robust,
             "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
             "fingers": [c.finger for c in cand.contacts],
-            "thumb": any("thumb" in c.finger.lower() for c in cand.contacts),
+            "thumb": any(hand.finger(c.finger).is_thumb for c in cand.contacts),
             "uncertainty_deg": np.degrees(unc).round(1).tolist(),
             "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
             "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import PlanningError
+from ..errors import PlanningError, SimulationError
 from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import robust_epsilon
@@ -284,8 +284,8 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
         return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
             "simulate: the MuJoCo check of a general hand is not available"
     held, other = [], []
-    stopped = False
-    for c in checked:
+    stopped, failure = False, ""
+    for position, c in enumerate(checked):
         if len(held) >= options.max_grasps:
             break
         if stopped or (should_stop is not None and should_stop()):
@@ -293,11 +293,18 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
             other.append((c, None))
             continue
         d = c.decoded
-        result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
-                                       c.squeeze, scene, options.friction, should_stop=should_stop)
+        try:
+            result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                                           c.squeeze, scene, options.friction, should_stop=should_stop)
+        except SimulationError as exc:  # the grasps stay, not simulated, and the reply says why
+            failure = str(exc)
+            other.extend((k, None) for k in checked[position:])
+            break
         (held if result.held else other).append((c, result))
     chosen = held + other[:max(0, options.max_grasps - len(held))]
     note = "simulation stopped at the time bound" if stopped else ""
+    if failure:
+        note = f"not simulated: {failure}"
     return [c for c, _ in chosen], [r for _, r in chosen], note
 
 
