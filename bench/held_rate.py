@@ -6,6 +6,18 @@ Rerunnable, not a test::
     .venv/bin/python bench/held_rate.py --quick                # particles 30, iterations 20, 1 seed
     .venv/bin/python bench/held_rate.py --seeds 3 --poses 2    # default swarm, seeds 0..2, 2 poses
     .venv/bin/python bench/held_rate.py --quick --algorithms apso --objects cube mug
+    .venv/bin/python bench/held_rate.py --quick --algorithms apso --hand shadow [--simulate]
+    .venv/bin/python bench/held_rate.py --quick --algorithms apso --hand path/to/hand.urdf
+
+``--hand``: any URDF / MJCF file (:func:`grasp_apso.model.hands.load_hand`), a test hand of
+``test/hand_files.py`` (``shadow``, ``inspire``, ``allegro_like``, ...), one of the local
+dex-urdf hands (``allegro``, ``leap``, ``ability``, ``schunk``, ``barrett``, ``inspire_urdf``,
+``shadow_urdf`` under ``/work/extern/dex-urdf``, never copied into the repository) or
+``paper`` (the default: the paper hand's own path). A general hand is planned with
+``plan(..., hand=h)`` and each candidate checked with
+:func:`~grasp_apso.simulation.any_hand.simulate_any_hand` (the hand's own description; the
+table only during the closing; held = within 5 cm and 15 degrees of the planned pose).
+Results go to ``bench/results/held_rate_<hand>[_simulate].json``.
 
 For each object (the four built-ins and every mesh of ``grasp_apso/data/meshes``), each
 pose (identity, then seeded random rotations about z), each algorithm (APSO, the simple
@@ -75,8 +87,47 @@ def pose_list(count: int, seed: int = 13) -> list[np.ndarray]:
     return out
 
 
+#: The local dex-urdf hands (never in the repository; for measurement only).
+DEX_URDF = Path(os.environ.get("DEX_URDF", "/work/extern/dex-urdf/robots/hands"))
+DEX_HANDS = {"allegro": "allegro_hand/allegro_hand_right.urdf", "leap": "leap_hand/leap_hand_right.urdf",
+             "ability": "ability_hand/ability_hand_right.urdf", "schunk": "schunk_hand/schunk_svh_hand_right.urdf",
+             "barrett": "barrett_hand/bhand_model.urdf", "inspire_urdf": "inspire_hand/inspire_hand_right.urdf",
+             "shadow_urdf": "shadow_hand/shadow_hand_right.urdf"}
+_HANDS: dict = {}
+
+
+def hand_path(spec: str) -> Path | None:
+    """The description file of ``--hand`` (None: the paper hand's own path)."""
+    if spec in ("paper", ""):
+        return None
+    if spec in DEX_HANDS:
+        return DEX_URDF / DEX_HANDS[spec]
+    sys.path.insert(0, str(REPO / "test"))
+    import hand_files  # noqa: PLC0415 -- the test hands (installed wheels / written here)
+    if spec == "allegro_like":
+        import tempfile
+        return hand_files.write_allegro_like(Path(tempfile.gettempdir()) / "held_rate_hands", coupled=False)
+    if spec in hand_files.HANDS:
+        return hand_files.installed_hand(spec)
+    path = Path(spec)
+    if not path.is_file():
+        raise SystemExit(f"--hand: {spec!r} is neither a file nor a known hand name")
+    return path
+
+
+def general_hand(spec: str):
+    """The loaded general hand of ``--hand`` (once per process)."""
+    if spec not in _HANDS:
+        from grasp_apso.model.hands.load import load_hand as load_any
+        _HANDS[spec] = load_any(hand_path(spec))
+    return _HANDS[spec]
+
+
 def run_case(task: tuple) -> dict:
     """Plan one (object, pose, algorithm, seed) on a table and simulate every candidate."""
+    if task[-1] not in ("paper", ""):
+        return run_any_case(task)
+    task = task[:-1]
     from grasp_apso.model.hand import load_hand
     from grasp_apso.model.scene import Scene
     from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
@@ -124,6 +175,68 @@ def run_case(task: tuple) -> dict:
     return row
 
 
+def run_any_case(task: tuple) -> dict:
+    """:func:`run_case` for a general hand (``--hand``): plan(..., hand=h) on a table and
+    check every candidate with simulate_any_hand."""
+    from grasp_apso.model.scene import Scene
+    from grasp_apso.quality.closing import closing_forces
+    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
+    from grasp_apso.search.options import PlanOptions
+    from grasp_apso.search.planner import plan
+    from grasp_apso.simulation.any_hand import simulate_any_hand
+
+    name, pose_index, pose, algorithm, seed, swarm, simulate, spec = task
+    obj, hand = load(name), general_hand(spec)
+    rot = pose[:3, :3]
+    vertices = np.asarray(obj.mesh.vertices) @ rot.T + pose[:3, 3]
+    scene = Scene.table_under(vertices)
+    top, low = float(vertices[:, 2].max()), float(vertices[:, 2].min())
+    options = PlanOptions(algorithm=algorithm, simulate=simulate, **swarm)
+    row = {"object": name, "pose": pose_index, "algorithm": algorithm, "seed": seed, "hand": spec, "candidates": []}
+    t0 = time.perf_counter()
+    try:
+        result = plan(obj, pose, options, np.random.default_rng(seed), hand=hand, scene=scene)
+    except Exception as exc:  # a failed plan is a recorded outcome, not a crash of the bench
+        row.update(error=f"{type(exc).__name__}: {exc}", plan_s=time.perf_counter() - t0)
+        return row
+    row["plan_s"] = time.perf_counter() - t0
+    for cand in result.candidates:
+        pts = np.array([c.position for c in cand.contacts]).reshape(-1, 3)
+        nrm = np.array([c.normal for c in cand.contacts]).reshape(-1, 3)
+        pts_obj, nrm_obj = (pts - pose[:3, 3]) @ rot, nrm @ rot
+        unc = normal_uncertainty(obj, pts_obj) if len(pts) else np.zeros(0)
+        nominal = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, np.zeros(len(pts)),
+                                 options.friction_edges) if len(pts) >= 2 else 0.0
+        robust = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, unc,
+                                options.friction_edges) if len(pts) >= 2 else 0.0
+        imbalance = closing_forces(pts_obj, nrm_obj, obj.center_of_mass, obj.characteristic_radius)[1] \
+            if len(pts) >= 2 else 1.0
+        try:
+            sim = simulate_any_hand(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions,
+                                    cand.joint_positions, cand.squeeze_positions, scene, options.friction)
+        except Exception as exc:  # recorded, counted as dropped
+            row.setdefault("sim_errors", []).append(f"{type(exc).__name__}: {exc}")
+            sim = None
+        row["candidates"].append({
+            "rank": cand.rank, "epsilon": float(cand.epsilon), "force_closure": bool(cand.force_closure),
+            "nominal_epsilon": nominal, "robust_epsilon": robust,
+            "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
+            "fingers": [c.finger for c in cand.contacts],
+            "thumb": any(hand.finger(c.finger).is_thumb for c in cand.contacts),
+            "uncertainty_deg": np.degrees(unc).round(1).tolist(),
+            "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
+            "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),
+            "planner_sim": int(cand.sim_result), "imbalance": imbalance,
+            "held": bool(sim is not None and sim.held),
+            "shift_mm": 1000 * sim.max_shift if sim else math.inf,
+            "turn_deg": math.degrees(sim.max_turn) if sim else math.inf,
+            "failed": [d for d, _, _, ok in sim.per_direction if not ok] if sim else ["error"],
+            "squeezed_turn_deg": math.degrees(sim.per_direction[0][2]) if sim and sim.per_direction else math.inf,
+            "sim_s": sim.sim_time if sim else 0.0,
+        })
+    return row
+
+
 def best_by(cands: list[dict], key: str) -> dict | None:
     """The best grasp by ``key`` among the force-closure candidates (planner rank breaks
     ties); the planner's best when none is force closure. ``first_robust`` /
@@ -143,6 +256,8 @@ def summarise(rows: list[dict]) -> dict:
     cands = [c for r in rows for c in r["candidates"]]
     planned = [r for r in rows if r["candidates"]]
     out = {"plans": len(rows), "plan_errors": sum("error" in r for r in rows),
+           "plans_with_grasp": len(planned),
+           "median_plan_s": statistics.median([r["plan_s"] for r in rows]) if rows else math.nan,
            "best_held": sum(r["candidates"][0]["held"] for r in planned),
            "candidates": len(cands), "candidates_held": sum(c["held"] for c in cands),
            "median_shift_mm": statistics.median([c["shift_mm"] for c in cands]) if cands else math.nan,
@@ -186,7 +301,8 @@ def print_report(rows: list[dict], algorithms: list[str], objects: list[str]) ->
                 continue
             s = summarise(group)
             planned = s["plans"] - s["plan_errors"]
-            print(f"{'TOTAL ' + label:22s} {_rate(s['best_held'], planned)} {_rate(s['candidates_held'], s['candidates'])}")
+            print(f"{'TOTAL ' + label:22s} {_rate(s['best_held'], planned)} {_rate(s['candidates_held'], s['candidates'])}"
+                  f"   plans with a grasp {_rate(planned, s['plans'])}, median plan {s['median_plan_s']:.1f} s")
             print(f"{'':22s} best re-ranked: " + ", ".join(f"{k} {_rate(s['best_held_by_' + k], planned)}"
                                                           for k in RERANK_KEYS))
             print(f"{'':22s} candidates with robust epsilon > 0: "
@@ -215,6 +331,7 @@ def print_failures(rows: list[dict]) -> None:
         "min mm below top": lambda c: min(c["below_top_mm"] or [math.nan]),
         "epsilon": lambda c: c["epsilon"], "robust epsilon": lambda c: c["robust_epsilon"],
         "margin": lambda c: c["margin"],
+        "closing imbalance": lambda c: c.get("imbalance", math.nan),
     }
     print(f"\n{'feature (median / mean)':24s} {'held':>16s} {'dropped':>16s}")
     for label, f in features.items():
@@ -236,7 +353,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="plan with PlanOptions.simulate (the simulation in the final selection: "
                              "held candidates first); every candidate is then simulated again here")
     parser.add_argument("--failures", action="store_true", help="print every dropped grasp")
-    parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "held_rate.json")
+    parser.add_argument("--hand", default="paper",
+                        help="paper (default), a test hand (shadow, inspire, allegro_like, ...), a dex-urdf "
+                             "hand (allegro, leap, ability, ...) or a URDF / MJCF file")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="default bench/results/held_rate[_<hand>][_simulate].json")
     parser.add_argument("--from-json", type=Path, help="reprint the tables of a saved run, no planning")
     args = parser.parse_args(argv)
     if args.from_json:
@@ -252,7 +373,11 @@ def main(argv: list[str] | None = None) -> int:
     seeds = 1 if args.quick else args.seeds
     swarm = {"particles": 30, "iterations": 20} if args.quick else {}
     poses = pose_list(args.poses)
-    tasks = [(name, k, pose, alg, seed, swarm, args.simulate) for alg in args.algorithms for name in objects
+    if args.hand not in ("paper", ""):
+        hand_path(args.hand)  # a bad name fails here, before any worker starts
+    tag = "" if args.hand == "paper" else "_" + Path(args.hand).stem
+    out = args.out or REPO / "bench" / "results" / f"held_rate{tag}{'_simulate' if args.simulate else ''}.json"
+    tasks = [(name, k, pose, alg, seed, swarm, args.simulate, args.hand) for alg in args.algorithms for name in objects
              for k, pose in enumerate(poses) for seed in range(seeds)]
     t0 = time.perf_counter()
     load0 = os.getloadavg()[0]
@@ -267,12 +392,12 @@ def main(argv: list[str] | None = None) -> int:
         print_failures(rows)
     print(f"\n{len(tasks)} plans in {wall:.0f} s ({args.workers} workers, load average {load0:.1f} -> "
           f"{os.getloadavg()[0]:.1f})")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({
-        "benchmark": "held_rate", "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({
+        "benchmark": "held_rate", "hand": args.hand, "simulate": args.simulate, "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
         "swarm": swarm or "default", "seeds": seeds, "poses": [p.tolist() for p in poses],
         "wall_s": round(wall, 1), "summary": summary, "runs": rows}, indent=1, default=float) + "\n")
-    print(f"wrote {args.out}")
+    print(f"wrote {out}")
     return 0
 
 

@@ -303,3 +303,21 @@ def test_bad_inputs_name_the_field(hands):
 
     with pytest.raises(TimeoutExceeded):
         simulate_any_hand(hand, obj, FAR, ROOT, q, q, q, should_stop=lambda: True)
+
+
+def test_urdf_with_unphysical_inertia_compiles(tmp_path):
+    # Real URDFs (dex-urdf's Allegro) carry inertias with A + B < C, which MuJoCo refuses
+    # unless asked to balance them.
+    path = write_allegro_like(tmp_path, "none")
+    root = ET.parse(path)
+    link = next(l for l in root.getroot().iter("link") if l.get("name") == "index_proximal")
+    inertial = ET.SubElement(link, "inertial")
+    ET.SubElement(inertial, "mass", value="0.05")
+    ET.SubElement(inertial, "inertia", ixx="1e-6", iyy="1e-6", izz="1e-4", ixy="0", ixz="0", iyz="0")
+    root.write(path)
+    hand = load_hand(path, spheres=False)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), hand.open_configuration())
+    inertia = sc.model.body_inertia[sc.model.body("index_proximal").id]
+    assert sc.model.body_mass[sc.model.body("index_proximal").id] == pytest.approx(0.05)
+    a, b, c = np.sort(inertia)
+    assert a + b >= c * (1 - 1e-9)

@@ -5,8 +5,16 @@ again and taken in descending fitness: each gets the Ferrari-Canny epsilon and f
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
 of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
-there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`; with ``simulate`` each is
-checked in MuJoCo (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`).
+there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`, where a *balanced* force-closure
+grasp counts as robust: the servos' squeezing forces along the contact normals can cancel
+(:func:`grasp_apso.quality.closing.closing_forces`, imbalance at most
+:data:`MAX_IMBALANCE`), so the closing does not shove or roll the object. Up to
+:data:`SPARE` times ``max_grasps`` distinct grasps are verified so that balanced ones can
+be found. Each candidate's squeeze exerts those balanced forces at its pads
+(``q + J^T f / kp``, :func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
+``simulate`` the verified grasps are checked in MuJoCo
+(:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
+held or all were tried.
 """
 
 from __future__ import annotations
@@ -18,8 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import PlanningError
+from ..errors import PlanningError, SimulationError
+from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
+from ..quality.robustness import robust_epsilon
 from .archive import wrists_distinct
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -28,6 +38,19 @@ __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture"]
 
 #: The squeeze (rad or m) when the simulation settings are not importable.
 SQUEEZE = math.radians(8.0)
+#: Largest closing imbalance (net wrench of the squeezing forces / their sum) of a grasp
+#: ranked as robust: friction (mu 0.5) absorbs a net force of up to about mu times the total,
+#: half of it leaves a margin for the fingers that touch first.
+MAX_IMBALANCE = 0.25
+#: Distinct grasps verified per requested one (balanced ones are looked for among them;
+#: with ``simulate`` they are simulated best first until ``max_grasps`` held).
+SPARE = 3
+#: Grasps with two or more contacts analysed per requested one (epsilon, robust epsilon,
+#: imbalance: about 2 ms each) to find the balanced ones before the collision checks.
+ANALYSED = 8
+#: When the pre-grasp's fingers hit the object on the approach, the verification tries
+#: them opened these fractions of the way to their opening limits.
+OPENING = (0.5, 1.0)
 
 
 @dataclass
@@ -43,6 +66,16 @@ class AnyChecked:
     scene_distance: float
     fcl: object | None
     note: str = ""
+    imbalance: float = 1.0
+    squeeze: np.ndarray | None = None
+    robust_epsilon: float = 0.0
+    forces: np.ndarray | None = None   # (contacts,) N, the squeeze's contact forces
+
+    @property
+    def balanced(self) -> bool:
+        """Robust force closure (it survives the normals' spread at edges and corners)
+        whose squeezing forces can cancel: ranked as robust."""
+        return self.force_closure and self.robust_epsilon > 0.0 and self.imbalance <= MAX_IMBALANCE
 
 
 def _module(name: str):
@@ -53,59 +86,160 @@ def _module(name: str):
         return None
 
 
-def _check(model, problem, decoded, fitness: float, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
+def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
+    """The analytic part of the verification of one decoded grasp (no collision check):
+    epsilon and force closure, the robust epsilon, the closing imbalance and the squeeze."""
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
-    eps, closure = 0.0, False
+    eps, closure, robust = 0.0, False, 0.0
     if mask.sum() >= 2:
         eps, closure = epsilon_quality(decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
                                        np.asarray(obj.center_of_mass, float), options.friction,
                                        torque_scale=float(obj.characteristic_radius))
+        if closure:
+            robust = float(robust_epsilon(obj, decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
+                                          mu=options.friction, edges=options.friction_edges,
+                                          torque_scale=float(obj.characteristic_radius)))
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    distance, report, note = math.inf, None, ""
-    if fcl_api is not None:
-        q, root = decoded.q[0], decoded.root[0]
-        report = fcl_api.object_report(hc, q, root, obj)
-        legal = legal and bool(report.legal)
-        if scene is not None:
-            root_plan = pose @ root
-            approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
-            distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))
-            path = fcl_api.approach_report(hc, decoded.q_pre[0], root_plan, approach, options.approach_distance,
-                                           scene, obj, pose)
-            distance = min(distance, float(path.min_scene_distance))
-            scene_clear = scene_clear and distance >= options.clearance and not path.hits_object
-    else:
-        note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
+    imbalance, squeeze, forces = _closing(model, decoded, obj)
     return AnyChecked(decoded, float(fitness), float(eps), bool(closure), bool(legal and mask.sum() >= 2),
-                      scene_clear, distance, report, note)
+                      scene_clear, math.inf, None, "", imbalance, squeeze, robust, forces)
+
+
+def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
+    """The python-fcl checks of an analysed grasp against the hand's exact collision
+    geometry: the object, the scene at the grasp and along the approach."""
+    if fcl_api is None:
+        c.note = "python-fcl verification of the hand not available (grasp_apso.geometry.any_hand_fcl)"
+        return c
+    decoded = c.decoded
+    q, root = decoded.q[0], decoded.root[0]
+    c.fcl = fcl_api.object_report(hc, q, root, obj)
+    c.valid = c.valid and bool(c.fcl.legal)
+    settings = _sim_settings()
+    if settings is not None and c.forces is not None:
+        c.squeeze = _squeeze(model, decoded, obj, c.forces, settings, c.fcl)
+    if scene is not None:
+        root_plan = pose @ root
+        approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
+        distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))
+        path = fcl_api.approach_report(hc, decoded.q_pre[0], root_plan, approach, options.approach_distance,
+                                       scene, obj, pose)
+        for fraction in OPENING if path.hits_object else ():
+            # The pre-shape's fingers sweep through the object on the way in: open them
+            # wider (the pre-shape joints kept) and approach again.
+            wider = opened(model.hand, decoded.q_pre[0], fraction)
+            again = fcl_api.approach_report(hc, wider, root_plan, approach, options.approach_distance, scene, obj,
+                                            pose)
+            if not again.hits_object and again.min_scene_distance >= options.clearance:
+                decoded.q_pre[0] = wider
+                path = again
+                break
+        c.scene_distance = min(distance, float(path.min_scene_distance))
+        c.scene_clear = c.scene_clear and c.scene_distance >= options.clearance and not path.hits_object
+    return c
+
+
+def opened(hand, q_pre: np.ndarray, fraction: float) -> np.ndarray:
+    """The pre-grasp posture q_pre (n,) with every closing joint moved ``fraction`` of the
+    way to its opening limit (the limit against its closing sense); pre-shape joints (no
+    closing sense) unchanged."""
+    out = np.array(q_pre, dtype=float)
+    for finger in hand.fingers:
+        for joint, sense in zip(finger.joints, finger.closing):
+            if sense:
+                j = hand.actuated_joints.index(joint)
+                limit = hand.lower[j] if sense > 0 else hand.upper[j]
+                out[j] += fraction * (limit - out[j])
+    return out
+
+
+def _sim_settings():
+    settings = _module("grasp_apso.simulation.settings")
+    return settings.SimulationSettings() if settings is not None else None
+
+
+def _closing(model, decoded, obj) -> tuple[float, np.ndarray, np.ndarray | None]:
+    """The closing imbalance of one decoded grasp, its squeezed posture (n,) and the
+    contact forces (N, newtons) it exerts: the balanced forces at the pads (mean
+    ``squeeze_force``) through the servos' gain; with fewer than two contacts the uniform
+    squeeze (forces None)."""
+    mask = decoded.contact[0]
+    q = decoded.q[0]
+    settings = _sim_settings()
+    if mask.sum() < 2 or settings is None:
+        return 1.0, squeeze_posture(model, q), None
+    fingers = np.flatnonzero(mask)
+    points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
+    forces, imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
+                                       float(obj.characteristic_radius), settings.squeeze_force)
+    return imbalance, _squeeze(model, decoded, obj, forces, settings), forces
+
+
+def _squeeze(model, decoded, obj, forces, settings, report=None) -> np.ndarray:
+    """The squeeze of one decoded grasp exerting ``forces`` at its contacts; with the
+    python-fcl ``report`` the pads' exact distances to the object are taken up first."""
+    fingers = np.flatnonzero(decoded.contact[0])
+    points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
+    inv = np.linalg.inv(decoded.root[0])  # object -> root frame
+    points_root = points @ inv[:3, :3].T + inv[:3, 3]
+    normals_root = normals @ inv[:3, :3].T
+    gaps = None
+    if report is not None and getattr(report, "link_distance", None) is not None:
+        links = list(report.links)
+        gaps = np.array([float(report.link_distance[links.index(model.hand.fingers[f].pad_link)])
+                         if model.hand.fingers[f].pad_link in links else 0.0 for f in fingers])
+        gaps = np.where(np.isfinite(gaps), gaps, 0.0)
+    return squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root, forces, settings.kp,
+                                 settings.max_torque, gaps=gaps)
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tuple[list[AnyChecked], str]:
-    """Verified candidates (best fitness first): valid and (with a scene) clear of it, up
-    to ``max_grasps``; without a scene at least the best one even when not valid."""
+    """Verified candidates: valid and (with a scene) clear of it, only the force-closure
+    ones when there are any.
+
+    The pool is the swarm's best, the leaders' archive and the particles' personal bests.
+    Up to :data:`ANALYSED` times ``max_grasps`` of them with two or more contacts, in
+    descending fitness, are analysed (:func:`_analyse`); then verified with python-fcl in
+    the order balanced first, fitness within (stable), distinct wrists only, until
+    ``max_grasps`` (with ``simulate``: :data:`SPARE` times that) are kept. Without a
+    scene at least the best one even when not valid."""
     pool = [np.clip(swarm.best, model.lower, model.upper)]
     if len(archive):
         pool.extend(archive.x)
+    personal = getattr(swarm, "personal_best", None)
+    if personal is not None:
+        finite = np.isfinite(np.asarray(swarm.personal_best_fitness, float))
+        pool.extend(np.clip(personal[finite], model.lower, model.upper))
     x = np.stack(pool)
+    _, first_rows = np.unique(x, axis=0, return_index=True)
+    x = x[np.sort(first_rows)]  # the archive's leaders are often personal bests too
     decoded = problem.decode(x)
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
+    contacts = decoded.contact.sum(axis=1)
+    analysed = [_analyse(model, decoded.take(np.array([i])), fitness[i], options, obj)
+                for i in [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]]
+    if not analysed:  # nothing with two contacts: the fittest, to report why
+        analysed = [_analyse(model, decoded.take(order[:1]), fitness[order[0]], options, obj)]
+    # stable: balanced, then other force closure, then the rest, by fitness within each
+    analysed.sort(key=lambda c: (not c.balanced, not c.force_closure))
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
     rejected = 0
-    for i in order:
-        if len(kept) >= options.max_grasps:
+    wanted = (SPARE if options.simulate else 1) * options.max_grasps
+    for c in analysed:
+        if len(kept) >= wanted:
             break
-        one = decoded.take(np.array([i]))
-        if kept and not all(wrists_distinct(c.decoded.wrist[0, :3, :3], c.decoded.wrist[0, :3, 3],
+        one = c.decoded
+        if kept and not all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3],
                                             one.wrist[:, :3, :3], one.wrist[:, :3, 3], options.min_orientation_gap,
-                                            options.min_position_gap)[0] for c in kept):
+                                            options.min_position_gap)[0] for k in kept):
             continue
-        checked = _check(model, problem, one, fitness[i], options, pose, obj, scene, fcl_api, hc)
+        checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
@@ -118,10 +252,17 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
                 f"hand {model.hand.name!r} is valid and keeps the clearance ({options.clearance * 1000:.1f} mm) "
                 "from the support planes and obstacles at the grasp and along the approach", "scene")
         kept = [first]
+    dropped = 0
+    if any(c.force_closure for c in kept):
+        # Grasps without force closure are not returned next to ones with it: measured on the
+        # Shadow hand, 1 of 46 held in the simulation (force closure: 31 of 55).
+        dropped = sum(not c.force_closure for c in kept)
+        kept = [c for c in kept if c.force_closure]
     message = ""
     if len(kept) < options.max_grasps:
         message = (f"{len(kept)} of {options.max_grasps} grasps: the search kept {len(archive)} distinct leaders, "
-                   f"{rejected} failed verification (legality, contacts, the scene and the approach)")
+                   f"{rejected} failed verification (legality, contacts, the scene and the approach)"
+                   + (f", {dropped} without force closure left out" if dropped else ""))
     if kept[0].note:
         message = (message + "; " if message else "") + kept[0].note
     return kept, message
@@ -142,20 +283,38 @@ def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
     return np.clip(out, hand.lower, hand.upper)
 
 
-def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, str]:
+def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
+    """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
+    was tried, or ``should_stop``). Returns the grasps to rank (every held one, then the
+    first dropped or unsimulated ones up to ``max_grasps``), their results (None: not
+    simulated) and a note."""
     sim = _module("grasp_apso.simulation.any_hand")
     if sim is None:
-        return [None] * len(checked), "simulate: the MuJoCo check of a general hand is not available"
-    out = []
-    for c in checked:
-        if should_stop is not None and should_stop():
-            out.append(None)
+        return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
+            "simulate: the MuJoCo check of a general hand is not available"
+    held, other = [], []
+    stopped, failure = False, ""
+    for position, c in enumerate(checked):
+        if len(held) >= options.max_grasps:
+            break
+        if stopped or (should_stop is not None and should_stop()):
+            stopped = True
+            other.append((c, None))
             continue
         d = c.decoded
-        out.append(sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
-                                         squeeze_posture(model, d.q[0]), scene, options.friction,
-                                         should_stop=should_stop))
-    return out, ""
+        try:
+            result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                                           c.squeeze, scene, options.friction, should_stop=should_stop)
+        except SimulationError as exc:  # the grasps stay, not simulated, and the reply says why
+            failure = str(exc)
+            other.extend((k, None) for k in checked[position:])
+            break
+        (held if result.held else other).append((c, result))
+    chosen = held + other[:max(0, options.max_grasps - len(held))]
+    note = "simulation stopped at the time bound" if stopped else ""
+    if failure:
+        note = f"not simulated: {failure}"
+    return [c for c, _ in chosen], [r for _, r in chosen], note
 
 
 def build_result(model, checked, message, swarm, problem, options, pose, shape, preparation, t1, obj, scene,
@@ -164,12 +323,13 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
     hand, t = model.hand, model.tables
     sims = None
     if options.simulate:
-        sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
+        checked, sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
         if note:
             message = (message + "; " if message else "") + note
     held = None if sims is None else np.array([s is not None and s.held for s in sims])
     quality = grasp_quality(np.array([c.fitness for c in checked]), np.array([c.valid for c in checked]),
-                            np.array([c.force_closure for c in checked]), held)
+                            np.array([c.force_closure for c in checked]), held,
+                            robust=np.array([c.balanced for c in checked]))
     order = rank_order(quality, np.array([c.epsilon for c in checked]))
     rot, trans = pose[:3, :3], pose[:3, 3]
     candidates = []
@@ -191,7 +351,7 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
             sim_max_shift=math.nan if sim is None else float(sim.max_shift),
             sim_max_turn=math.nan if sim is None else float(sim.max_turn),
             wrist_in_object=d.root[0].copy(), joints=np.zeros((0, 4, 3)), pre_grasp_joints=np.zeros((0, 4, 3)),
-            squeeze_positions=squeeze_posture(model, d.q[0])))
+            squeeze_positions=c.squeeze.copy()))
     top, best = checked[int(order[0])], candidates[0]
     d = top.decoded
     return GraspResult(

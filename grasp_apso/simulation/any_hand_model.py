@@ -159,6 +159,10 @@ def _hand_spec(hand):
     # 1e-8 kg m^2 (below any real finger link: bodies that have mass keep theirs).
     spec.compiler.boundmass = max(float(spec.compiler.boundmass), _MIN_MASS)
     spec.compiler.boundinertia = max(float(spec.compiler.boundinertia), _MIN_INERTIA)
+    # Real URDFs carry inertias that violate A + B >= C (dex-urdf's Allegro: link_1.0),
+    # which MuJoCo refuses to compile; it balances them when asked (the diagonal raised
+    # to the nearest physical one, masses and frames kept).
+    spec.compiler.balanceinertia = True
     return spec
 
 

@@ -35,7 +35,12 @@ class SimulationSettings:
     max_turn : float, rad
         ... and the object turns less than this.
     squeeze : float, rad
-        Extra flexion beyond the grasp posture (clipped to the limits).
+        Extra flexion beyond the grasp posture (clipped to the limits): the paper hand's
+        squeeze, and a general hand's when its contacts are not known.
+    squeeze_force : float, N
+        Mean contact force a general hand's squeeze aims at (``q_grasp + J^T f / kp``,
+        :func:`grasp_apso.quality.closing.squeeze_toward_forces`): 2 N per contact, so that
+        three contacts with mu 0.5 carry the 1 N disturbance with margin (3 N of friction).
     close_time, squeeze_time, settle_time : float, s
         Durations of the closing ramp, the squeeze ramp and the hold before the tests.
     max_settle_time : float, s; rest_speed : float, m/s; rest_spin : float, rad/s
@@ -79,6 +84,7 @@ class SimulationSettings:
     max_shift: float = 0.05
     max_turn: float = math.radians(15.0)
     squeeze: float = math.radians(8.0)
+    squeeze_force: float = 2.0
     close_time: float = 0.3
     squeeze_time: float = 0.1
     settle_time: float = 0.2
@@ -100,7 +106,7 @@ class SimulationSettings:
         ranges = {
             "object_mass": (1e-4, 100.0), "friction": (1e-3, 5.0), "torsional_friction": (0.0, 0.1),
             "rolling_friction": (0.0, 0.1), "disturbance": (0.0, 1000.0), "duration": (1e-3, 60.0),
-            "max_shift": (1e-4, 10.0), "max_turn": (1e-4, math.pi), "squeeze": (0.0, 0.5),
+            "max_shift": (1e-4, 10.0), "max_turn": (1e-4, math.pi), "squeeze": (0.0, 0.5), "squeeze_force": (0.0, 100.0),
             "close_time": (0.0, 10.0), "squeeze_time": (0.0, 10.0), "settle_time": (0.0, 10.0),
             "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
             "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
