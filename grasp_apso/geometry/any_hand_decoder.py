@@ -54,7 +54,8 @@ GRID_MARGIN = 0.0005
 #: half facing the pad normal. A fingertip touching with its back or its very tip is no pad
 #: contact. (Narrower cones put the pad point itself on the surface -- within
 #: r (1 - cos PAD_CONE) -- but leave few postures in which a thumb can touch at all: on the
-#: Inspire and Allegro hands a 45 degree cone left a third as many force-closure grasps.)
+#: five test and dex-urdf hands a 45 degree cone left fewer than half as many force-closure
+#: grasps.)
 PAD_CONE = float(np.radians(90.0))
 _COS_CONE = float(np.cos(PAD_CONE)) + 1e-9
 

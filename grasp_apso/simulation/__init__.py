@@ -6,7 +6,7 @@
     res = simulate_grasp(hand, obj, pose, wrist_pose, pre_grasp_q, grasp_q, planes=None)
     res.held, res.max_shift, res.max_turn, res.per_direction, res.sim_time
 
-Any hand (``grasp_apso.model.hands.load_hand(path)``), on its own description file::
+Any hand (``grasp_apso.model.load_hand(path)``), on its own description file::
 
     from grasp_apso.simulation import simulate_any_hand
     res = simulate_any_hand(hand, obj, obj_pose, root_pose, q_pre, q_grasp, q_squeeze, scene, friction)
