@@ -83,3 +83,22 @@ def test_pads_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
                     assert joint.limit.lower - 1e-6 <= values[name] <= joint.limit.upper + 1e-6, (name, values[name])
             checked += 1
     assert checked >= 2, "too few candidates to check"
+
+
+def test_a_fingertip_touching_with_its_back_or_side_is_told_apart(urdf):
+    """The decoder's pad side (``_pad_facing``): a pad sphere touching the cube's +x face,
+    its pad normal turned 0, 80, 100 and 180 degrees from the face's inward normal, reads
+    the cosine of that angle; only the first two are pad contacts (``PAD_CONE``: the half
+    facing the pad normal)."""
+    from grasp_apso.geometry import any_hand_decoder as decoder
+
+    obj = builtin("cube")
+    model = decoder.make_any_hand_model(load_hand(urdf), obj)
+    half = float(obj.mesh.bounds[1, 0])
+    r = 0.01
+    angles = np.radians([0.0, 80.0, 100.0, 180.0])
+    centers = np.tile([half + r, 0.0, 0.0], (1, len(angles), 1))     # (1, 4, 3): touching the +x face
+    normals = np.stack([-np.cos(angles), np.sin(angles), np.zeros_like(angles)], axis=1)
+    facing = decoder._pad_facing(model, centers + r * normals[None], centers)[0]
+    assert facing == pytest.approx(np.cos(angles), abs=0.03)
+    assert list(facing >= decoder._COS_CONE) == [True, True, False, False]
