@@ -253,8 +253,10 @@ def test_power_grasp_verdict_matches_the_object_in_mujoco(hands, name):
     hand = hands[name]
     obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
     rec = Recorder(hand.root_link)
-    res = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=QUICK, observer=rec)
-    assert res.held == _independent_held(rec, obj, pose, QUICK), res
+    # A caging posture (90 % closed), not a touching one: the fingers close from the open hand.
+    settings = replace(QUICK, pregrasp_fraction=1.0)
+    res = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=rec)
+    assert res.held == _independent_held(rec, obj, pose, settings), res
     if name == "shadow":  # the Shadow hand's fingers and thumb cage the ball against its palm
         assert res.held, res
 
@@ -263,9 +265,10 @@ def test_full_protocol_shadow_power_grasp_holds_and_is_deterministic(hands):
     hand = hands["shadow"]
     obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
     rec = Recorder(hand.root_link)
-    first = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, observer=rec)
-    second = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze)
-    assert first.held and _independent_held(rec, obj, pose, SimulationSettings()), first
+    settings = SimulationSettings(pregrasp_fraction=1.0)  # a caging posture: closing from the open hand
+    first = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=rec)
+    second = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings)
+    assert first.held and _independent_held(rec, obj, pose, settings), first
     assert first.per_direction == second.per_direction
 
 

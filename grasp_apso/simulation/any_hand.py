@@ -7,7 +7,8 @@ postures given over ``hand.actuated_joints``:
 1. The scene (:mod:`.any_hand_model`): the hand from its file, its root link held at
    ``root_pose``, position servos on the actuated joints, the object a free body at
    ``obj_pose``, the scene's planes and obstacles, gravity off.
-2. The fingers start at ``q_pre``; the servo targets move to ``q_grasp`` in
+2. The fingers start ``pregrasp_fraction`` of the way from ``q_grasp`` back to ``q_pre``
+   (just off the contacts, as DexGraspBench's pregrasp); the servo targets move to ``q_grasp`` in
    ``close_time``, then to ``q_squeeze`` in ``squeeze_time``, and hold there
    ``settle_time`` (longer, up to ``max_settle_time``, until the object rests).
 3. The scene's contacts are switched off (the object is in the hand, off the table), then
@@ -120,6 +121,33 @@ def prepare_any_hand(hand, obj, obj_pose, root_pose, q_pre, scene=None, friction
     return sc, settings
 
 
+#: A start posture whose links are this deep in the object (m) is not used (see _start_near).
+START_PENETRATION = 1e-3
+
+
+def _start_near(sc: AnyHandScene, hand, grasp: np.ndarray, pre: np.ndarray, fraction: float) -> None:
+    """Put the fingers (and their servo targets) ``fraction`` of the way from the grasp
+    posture back to the pre-grasp, or, when a link would then lie inside the object (a
+    grasp posture that is not a touching one), half-way, else at the pre-grasp itself."""
+    import mujoco
+
+    model, data = sc.model, sc.data
+    for f in [float(fraction)] + [f for f in (0.5, 1.0) if f > fraction]:
+        start = grasp + f * (pre - grasp)
+        full = hand.full_positions(start)
+        for adr, index in sc.joint_qpos:
+            data.qpos[adr] = full[index]
+        data.ctrl[:] = start
+        mujoco.mj_forward(model, data)
+        deepest = 0.0
+        for c in data.contact[:data.ncon]:
+            bodies = (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2])
+            if (sc.object_body in bodies and c.geom1 not in sc.scene_geoms and c.geom2 not in sc.scene_geoms):
+                deepest = max(deepest, -float(c.dist))
+        if deepest <= START_PENETRATION:
+            return
+
+
 def simulate_any_hand(hand, obj, obj_pose, root_pose, q_pre, q_grasp, q_squeeze, scene=None,
                       friction: float = 0.5, settings: SimulationSettings | None = None,
                       should_stop: Callable[[], bool] | None = None,
@@ -137,7 +165,8 @@ def simulate_any_hand(hand, obj, obj_pose, root_pose, q_pre, q_grasp, q_squeeze,
     root_pose : (4, 4) float
         The hand's root link in the planning frame (the candidate's ``wrist_pose``).
     q_pre, q_grasp, q_squeeze : (n,) float, rad or m
-        Pre-grasp, grasp and squeezed postures over ``hand.actuated_joints``.
+        Pre-grasp, grasp and squeezed postures over ``hand.actuated_joints`` (the fingers
+        start ``settings.pregrasp_fraction`` of the way from ``q_grasp`` back to ``q_pre``).
     scene : grasp_apso.model.scene.Scene or None
         Planning frame; in the model for the closing only.
     friction : float
@@ -173,6 +202,7 @@ def simulate_any_hand(hand, obj, obj_pose, root_pose, q_pre, q_grasp, q_squeeze,
     squeeze = _posture(hand, q_squeeze, "q_squeeze")
     sc, settings = prepare_any_hand(hand, obj, obj_pose, root_pose, q_pre, scene, friction, settings, should_stop)
     model, data = sc.model, sc.data
+    _start_near(sc, hand, grasp, _posture(hand, q_pre, "q_pre"), settings.pregrasp_fraction)
     pre = np.array(data.ctrl, dtype=float)
     notify = observer or (lambda *_: None)
     notify("pre_grasp", model, data)

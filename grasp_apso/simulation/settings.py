@@ -41,6 +41,14 @@ class SimulationSettings:
         Mean contact force a general hand's squeeze aims at (``q_grasp + J^T f / kp``,
         :func:`grasp_apso.quality.closing.squeeze_toward_forces`): 2 N per contact, so that
         three contacts with mu 0.5 carry the 1 N disturbance with margin (3 N of friction).
+    pregrasp_fraction : float
+        Where a general hand's fingers start closing: this fraction of the way from the
+        grasp posture back to the given pre-grasp (1: the pre-grasp itself). DexGraspBench
+        replays a pregrasp posture just off the contacts (BODex's data); the planner's
+        pre-grasp is the open approach posture, from which fingers arriving one after
+        another shove and turn the free object before the others touch it (Inspire, 9
+        objects on a table: best grasps held 1 of 7 closing from the pre-grasp, 6 of 7
+        from a quarter of the way).
     close_time, squeeze_time, settle_time : float, s
         Durations of the closing ramp, the squeeze ramp and the hold before the tests.
     max_settle_time : float, s; rest_speed : float, m/s; rest_spin : float, rad/s
@@ -85,6 +93,7 @@ class SimulationSettings:
     max_turn: float = math.radians(15.0)
     squeeze: float = math.radians(8.0)
     squeeze_force: float = 2.0
+    pregrasp_fraction: float = 0.25
     close_time: float = 0.3
     squeeze_time: float = 0.1
     settle_time: float = 0.2
@@ -107,6 +116,7 @@ class SimulationSettings:
             "object_mass": (1e-4, 100.0), "friction": (1e-3, 5.0), "torsional_friction": (0.0, 0.1),
             "rolling_friction": (0.0, 0.1), "disturbance": (0.0, 1000.0), "duration": (1e-3, 60.0),
             "max_shift": (1e-4, 10.0), "max_turn": (1e-4, math.pi), "squeeze": (0.0, 0.5), "squeeze_force": (0.0, 100.0),
+            "pregrasp_fraction": (0.0, 1.0),
             "close_time": (0.0, 10.0), "squeeze_time": (0.0, 10.0), "settle_time": (0.0, 10.0),
             "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
             "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
