@@ -124,28 +124,34 @@ def general_hand(spec: str):
 
 
 def run_case(task: tuple) -> dict:
-    """Plan one (object, pose, algorithm, seed) on a table and simulate every candidate."""
-    if task[-1] not in ("paper", ""):
-        return run_any_case(task)
-    task = task[:-1]
-    from grasp_apso.model.hand import load_hand
+    """Plan one (object, pose, algorithm, seed) on a table with the paper hand or the
+    general hand of ``--hand`` and simulate every candidate (the paper hand with
+    ``simulate_grasp``, a general hand with ``simulate_any_hand`` on its own file)."""
     from grasp_apso.model.scene import Scene
+    from grasp_apso.quality.closing import closing_forces
     from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
     from grasp_apso.search.options import PlanOptions
     from grasp_apso.search.planner import plan
-    from grasp_apso.simulation import simulate_grasp
 
-    name, pose_index, pose, algorithm, seed, swarm, simulate = task
-    obj, hand = load(name), load_hand()
+    name, pose_index, pose, algorithm, seed, swarm, simulate, spec = task
+    general = spec not in ("paper", "")
+    if general:
+        hand, plan_hand = general_hand(spec), general_hand(spec)
+    else:
+        from grasp_apso.model.hand import load_hand
+        hand, plan_hand = load_hand(), None
+    obj = load(name)
     rot = pose[:3, :3]
     vertices = np.asarray(obj.mesh.vertices) @ rot.T + pose[:3, 3]
     scene = Scene.table_under(vertices)
     top, low = float(vertices[:, 2].max()), float(vertices[:, 2].min())
     options = PlanOptions(algorithm=algorithm, simulate=simulate, **swarm)
     row = {"object": name, "pose": pose_index, "algorithm": algorithm, "seed": seed, "candidates": []}
+    if general:
+        row["hand"] = spec
     t0 = time.perf_counter()
     try:
-        result = plan(obj, pose, options, np.random.default_rng(seed), scene=scene)
+        result = plan(obj, pose, options, np.random.default_rng(seed), hand=plan_hand, scene=scene)
     except Exception as exc:  # a failed plan is a recorded outcome, not a crash of the bench
         row.update(error=f"{type(exc).__name__}: {exc}", plan_s=time.perf_counter() - t0)
         return row
@@ -159,82 +165,54 @@ def run_case(task: tuple) -> dict:
                                  options.friction_edges) if len(pts) >= 2 else 0.0
         robust = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, unc,
                                 options.friction_edges) if len(pts) >= 2 else 0.0
-        sim = simulate_grasp(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions[:15],
-                             cand.joint_positions[:15], planes=scene.planes)
-        row["candidates"].append({
-            "rank": cand.rank, "epsilon": float(cand.epsilon), "force_closure": bool(cand.force_closure),
-            "nominal_epsilon": nominal, "robust_epsilon": robust,
-            "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
-            "fingers": [c.finger for c in cand.contacts], "thumb": any(c.finger == "thumb" for c in cand.contacts),
-            "uncertainty_deg": np.degrees(unc).round(1).tolist(),
-            "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
-            "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),
-            "held": bool(sim.held), "shift_mm": 1000 * sim.max_shift, "turn_deg": math.degrees(sim.max_turn),
-            "failed": [d for d, _, _, ok in sim.per_direction if not ok], "sim_s": sim.sim_time,
-        })
-    return row
-
-
-def run_any_case(task: tuple) -> dict:
-    """:func:`run_case` for a general hand (``--hand``): plan(..., hand=h) on a table and
-    check every candidate with simulate_any_hand."""
-    from grasp_apso.model.scene import Scene
-    from grasp_apso.quality.closing import closing_forces
-    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
-    from grasp_apso.search.options import PlanOptions
-    from grasp_apso.search.planner import plan
-    from grasp_apso.simulation.any_hand import simulate_any_hand
-
-    name, pose_index, pose, algorithm, seed, swarm, simulate, spec = task
-    obj, hand = load(name), general_hand(spec)
-    rot = pose[:3, :3]
-    vertices = np.asarray(obj.mesh.vertices) @ rot.T + pose[:3, 3]
-    scene = Scene.table_under(vertices)
-    top, low = float(vertices[:, 2].max()), float(vertices[:, 2].min())
-    options = PlanOptions(algorithm=algorithm, simulate=simulate, **swarm)
-    row = {"object": name, "pose": pose_index, "algorithm": algorithm, "seed": seed, "hand": spec, "candidates": []}
-    t0 = time.perf_counter()
-    try:
-        result = plan(obj, pose, options, np.random.default_rng(seed), hand=hand, scene=scene)
-    except Exception as exc:  # a failed plan is a recorded outcome, not a crash of the bench
-        row.update(error=f"{type(exc).__name__}: {exc}", plan_s=time.perf_counter() - t0)
-        return row
-    row["plan_s"] = time.perf_counter() - t0
-    for cand in result.candidates:
-        pts = np.array([c.position for c in cand.contacts]).reshape(-1, 3)
-        nrm = np.array([c.normal for c in cand.contacts]).reshape(-1, 3)
-        pts_obj, nrm_obj = (pts - pose[:3, 3]) @ rot, nrm @ rot
-        unc = normal_uncertainty(obj, pts_obj) if len(pts) else np.zeros(0)
-        nominal = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, np.zeros(len(pts)),
-                                 options.friction_edges) if len(pts) >= 2 else 0.0
-        robust = robust_epsilon(obj, pts_obj, nrm_obj, options.friction, unc,
-                                options.friction_edges) if len(pts) >= 2 else 0.0
-        imbalance = closing_forces(pts_obj, nrm_obj, obj.center_of_mass, obj.characteristic_radius)[1] \
-            if len(pts) >= 2 else 1.0
-        try:
-            sim = simulate_any_hand(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions,
-                                    cand.joint_positions, cand.squeeze_positions, scene, options.friction)
-        except Exception as exc:  # recorded, counted as dropped
-            row.setdefault("sim_errors", []).append(f"{type(exc).__name__}: {exc}")
-            sim = None
-        row["candidates"].append({
+        features = {
             "rank": cand.rank, "epsilon": float(cand.epsilon), "force_closure": bool(cand.force_closure),
             "nominal_epsilon": nominal, "robust_epsilon": robust,
             "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
             "fingers": [c.finger for c in cand.contacts],
-            "thumb": any(hand.finger(c.finger).is_thumb for c in cand.contacts),
+            "thumb": any((hand.finger(c.finger).is_thumb if general else c.finger == "thumb")
+                         for c in cand.contacts),
             "uncertainty_deg": np.degrees(unc).round(1).tolist(),
             "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
             "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),
-            "planner_sim": int(cand.sim_result), "imbalance": imbalance,
-            "held": bool(sim is not None and sim.held),
-            "shift_mm": 1000 * sim.max_shift if sim else math.inf,
-            "turn_deg": math.degrees(sim.max_turn) if sim else math.inf,
-            "failed": [d for d, _, _, ok in sim.per_direction if not ok] if sim else ["error"],
-            "squeezed_turn_deg": math.degrees(sim.per_direction[0][2]) if sim and sim.per_direction else math.inf,
-            "sim_s": sim.sim_time if sim else 0.0,
-        })
+        }
+        if general:
+            features["planner_sim"] = int(cand.sim_result)
+            features["imbalance"] = closing_forces(pts_obj, nrm_obj, obj.center_of_mass,
+                                                   obj.characteristic_radius)[1] if len(pts) >= 2 else 1.0
+            features.update(_simulate_any(hand, obj, pose, cand, scene, options, row))
+        else:
+            from grasp_apso.simulation import simulate_grasp
+
+            sim = simulate_grasp(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions[:15],
+                                 cand.joint_positions[:15], planes=scene.planes)
+            features.update({
+                "held": bool(sim.held), "shift_mm": 1000 * sim.max_shift, "turn_deg": math.degrees(sim.max_turn),
+                "failed": [d for d, _, _, ok in sim.per_direction if not ok], "sim_s": sim.sim_time,
+            })
+        row["candidates"].append(features)
     return row
+
+
+def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
+    """A general hand's candidate in ``simulate_any_hand``: the verdict fields (an error is
+    recorded in ``row["sim_errors"]`` and counted as dropped)."""
+    from grasp_apso.simulation.any_hand import simulate_any_hand
+
+    try:
+        sim = simulate_any_hand(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions,
+                                cand.joint_positions, cand.squeeze_positions, scene, options.friction)
+    except Exception as exc:  # recorded, counted as dropped
+        row.setdefault("sim_errors", []).append(f"{type(exc).__name__}: {exc}")
+        sim = None
+    return {
+        "held": bool(sim is not None and sim.held),
+        "shift_mm": 1000 * sim.max_shift if sim else math.inf,
+        "turn_deg": math.degrees(sim.max_turn) if sim else math.inf,
+        "failed": [d for d, _, _, ok in sim.per_direction if not ok] if sim else ["error"],
+        "squeezed_turn_deg": math.degrees(sim.per_direction[0][2]) if sim and sim.per_direction else math.inf,
+        "sim_s": sim.sim_time if sim else 0.0,
+    }
 
 
 def best_by(cands: list[dict], key: str) -> dict | None:
