@@ -45,7 +45,7 @@ from ..model.scene import Scene
 from .any_hand_queries import object_distances, obstacle_distances, part_pair_distances, plane_distances
 from .any_hand_shapes import EXACT_WITHIN, HandShapes, hand_shapes, object_shape
 # The scene's fcl objects, the pose/number validation and the approach tolerances are the paper hand's (one source of truth).
-from .hand_fcl import CONTACT_ZONE, MAX_STEPS, OBJECT_TOLERANCE, _nonnegative, _pose, _scene_geometry
+from .hand_fcl import CONTACT_ZONE, OBJECT_TOLERANCE, _approach_steps, _nonnegative, _pose, _scene_geometry
 
 __all__ = ["HandCollision", "AnyHandReport", "AnyApproachReport", "object_report", "scene_distance",
            "approach_report", "TOUCH_TOLERANCE", "ALLOWED_OVERLAP"]
@@ -361,12 +361,8 @@ def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose:
     dist = _nonnegative(distance, "distance")
     step = _nonnegative(step, "step")
     clear_min = _nonnegative(clearance, "clearance")
-    if step <= 0:
-        raise InputError("step: must be > 0", "step")
+    n = _approach_steps(dist, step, "distance")
     scene = _scene(scene)
-    n = int(math.ceil(dist / step - 1e-12)) if dist > 0 else 0
-    if n + 1 > MAX_STEPS:
-        raise InputError(f"step: {n + 1} poses for distance {dist} m, at most {MAX_STEPS}", "step")
     shape = None if obj is None else object_shape(obj)
     opose = np.eye(4) if obj_pose is None else _pose(obj_pose, "obj_pose")
     start = hc.part_poses(q_pre, root, "q_pre")

@@ -111,6 +111,18 @@ def _nonnegative(value: float, field: str) -> float:
     return v
 
 
+def _approach_steps(distance: float, step: float, distance_field: str) -> int:
+    """Steps n (n + 1 poses) of ``step`` m over an approach of ``distance`` m (both
+    checked >= 0 already); InputError naming ``step`` when it is 0 or the poses exceed
+    :data:`MAX_STEPS`."""
+    if step <= 0:
+        raise InputError("step: must be > 0", "step")
+    n = int(math.ceil(distance / step - 1e-12)) if distance > 0 else 0
+    if n + 1 > MAX_STEPS:
+        raise InputError(f"step: {n + 1} poses for {distance_field} {distance} m, at most {MAX_STEPS}", "step")
+    return n
+
+
 # ------------------------------------------------------------------ geometry
 def _local_parts(hand: HandModel, values15: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """(rotation (3, 3), centre (3,) m) of each part in the palm frame: the palm box, the
@@ -341,9 +353,7 @@ def approach_report(
         raise InputError("step: must be > 0", "step")
     if not isinstance(scene, Scene):
         raise InputError(f"scene: expected a Scene, got {type(scene).__name__}", "scene")
-    n = int(math.ceil(dist / step - 1e-12)) if dist > 0 else 0
-    if n + 1 > MAX_STEPS:
-        raise InputError(f"step: {n + 1} poses for approach_distance {dist} m, at most {MAX_STEPS}", "step")
+    n = _approach_steps(dist, step, "approach_distance")
     obj = box = None
     if obj_bvh is not None:
         pose = np.eye(4) if object_pose is None else _pose(object_pose, "object_pose")
