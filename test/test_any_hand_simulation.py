@@ -272,6 +272,30 @@ def test_full_protocol_shadow_power_grasp_holds_and_is_deterministic(hands):
     assert first.per_direction == second.per_direction
 
 
+def test_the_fingers_start_near_the_grasp_unless_that_is_inside_the_object(hands):
+    """``pregrasp_fraction``: the closing starts a quarter of the way from the grasp posture
+    back to the pre-grasp when the hand is clear of the object there (the ball far away),
+    and further back when a link would start inside it (a caging posture around a ball)."""
+    hand = hands["shadow"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    starts = {}
+
+    def start_of(name):
+        def observe(phase, model, data):
+            if phase == "pre_grasp":
+                starts[name] = np.array(data.ctrl, dtype=float)
+        return observe
+
+    settings = replace(QUICK, duration=0.05)
+    simulate_any_hand(hand, obj, FAR, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=start_of("far"))
+    simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=start_of("caged"))
+    quarter = q_grasp + settings.pregrasp_fraction * (q_pre - q_grasp)
+    assert np.allclose(starts["far"], quarter, atol=1e-9)
+    caged = starts["caged"]
+    assert not np.allclose(caged, quarter, atol=1e-6)
+    assert np.allclose(caged, q_grasp + 0.5 * (q_pre - q_grasp), atol=1e-9) or np.allclose(caged, q_pre, atol=1e-9)
+
+
 def test_quick_check_is_deterministic(hands):
     hand = hands["allegro"]
     obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
