@@ -35,6 +35,9 @@ HANDS = ("allegro", "shadow", "inspire", "paper_urdf")
 SEEDS = (0, 1)
 OPTIONS = PlanOptions(particles=30, iterations=20, max_grasps=3)
 PAD_TOLERANCE = 0.002
+#: m, the median pad gap at a hand's pre-grasps (measured 10-25 mm on the cube and the mug;
+#: the search's wide-open pre-shapes, 40-140 mm).
+NEAR_PRE_GRASP = 0.04
 
 
 @pytest.fixture(scope="module")
@@ -97,6 +100,20 @@ def _pad_sphere(hand, finger) -> np.ndarray:
     return np.asarray(finger.pad_center) - finger.pad_radius * mesh.face_normals[face[0]]
 
 
+def _pad_gaps(hand, cand, q: np.ndarray, mesh: trimesh.Trimesh) -> list[float]:
+    """Signed gap (m) between each contact finger's pad sphere, at posture q and the
+    candidate's wrist pose, and the object's surface (negative: inside)."""
+    poses = hand.link_transforms(q)
+    out = []
+    for contact in cand.contacts:
+        finger = hand.finger(contact.finger)
+        centre = (cand.wrist_pose @ poses[finger.pad_link] @ np.append(_pad_sphere(hand, finger), 1.0))[:3]
+        _, distance, _ = trimesh.proximity.closest_point(mesh, centre[None])
+        inside = bool(mesh.contains(centre[None])[0])
+        out.append((-1.0 if inside else 1.0) * float(distance[0]) - finger.pad_radius)
+    return out
+
+
 def _pad_errors(hand, result, mesh: trimesh.Trimesh) -> list[float]:
     """|distance of each contact finger's pad sphere centre to the object's surface - pad radius| (m):
     how far the pad's surface is from the object's."""
@@ -139,6 +156,7 @@ def test_most_plans_return_a_grasp(plans):
 def test_returned_grasps_are_sound(hands, plans, hand_name):
     hand = hands[hand_name]
     checked = 0
+    pre_gaps = []
     for (h, obj_name, seed), (obj, table, result) in plans.items():
         if h != hand_name or isinstance(result, Exception):
             continue
@@ -154,6 +172,13 @@ def test_returned_grasps_are_sound(hands, plans, hand_name):
                 assert cand.n_contacts >= 2
                 errors = _pad_errors(hand, cand, obj.mesh)
                 assert max(errors) <= PAD_TOLERANCE, (obj_name, seed, cand.rank, errors)
+        for cand in result.candidates:
+            # The pre-grasp at the grasp's wrist pose (a DexGraspBench replay starts there):
+            # clear of the object, the pads just off it (the closing then starts near the
+            # contacts instead of wide open).
+            gaps = _pad_gaps(hand, cand, cand.pre_grasp_positions, obj.mesh)
+            assert min(gaps) >= -0.001, (obj_name, seed, cand.rank, gaps)
+            pre_gaps.append(float(np.median(gaps)))
         plane = table.planes[0]
         for cand in result.candidates:
             assert _table_distance(hand, cand.joint_positions, cand.wrist_pose, plane) >= OPTIONS.clearance - 1e-4, (
@@ -162,6 +187,7 @@ def test_returned_grasps_are_sound(hands, plans, hand_name):
                 OPTIONS.clearance - 1e-4), (obj_name, seed, cand.rank, "pre-grasp")
         checked += 1
     assert checked >= 1
+    assert np.median(pre_gaps) <= NEAR_PRE_GRASP, sorted(pre_gaps)
 
 
 def test_same_seed_same_result(hands, plans):

@@ -272,8 +272,22 @@ def test_full_protocol_shadow_power_grasp_holds_and_is_deterministic(hands):
     assert first.per_direction == second.per_direction
 
 
+def test_the_closing_starts_at_the_given_pre_grasp_by_default(hands):
+    """The default protocol replays the candidate's own pre-grasp posture (the planner
+    makes it a near one, DexGraspBench replays it as it is)."""
+    hand = hands["shadow"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    starts = []
+    settings = replace(QUICK, duration=0.05, pregrasp_fraction=SimulationSettings().pregrasp_fraction)
+    assert settings.pregrasp_fraction == 1.0
+    simulate_any_hand(hand, obj, FAR, ROOT, q_pre, q_grasp, q_squeeze, settings=settings,
+                      observer=lambda phase, model, data: starts.append(np.array(data.ctrl)) if phase == "pre_grasp"
+                      else None)
+    assert np.allclose(starts[0], q_pre, atol=1e-9)
+
+
 def test_the_fingers_start_near_the_grasp_unless_that_is_inside_the_object(hands):
-    """``pregrasp_fraction``: the closing starts a quarter of the way from the grasp posture
+    """``pregrasp_fraction`` below 1: the closing starts that far from the grasp posture
     back to the pre-grasp when the hand is clear of the object there (the ball far away),
     and further back when a link would start inside it (a caging posture around a ball)."""
     hand = hands["shadow"]
@@ -286,7 +300,7 @@ def test_the_fingers_start_near_the_grasp_unless_that_is_inside_the_object(hands
                 starts[name] = np.array(data.ctrl, dtype=float)
         return observe
 
-    settings = replace(QUICK, duration=0.05)
+    settings = replace(QUICK, duration=0.05, pregrasp_fraction=0.25)
     simulate_any_hand(hand, obj, FAR, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=start_of("far"))
     simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=start_of("caged"))
     quarter = q_grasp + settings.pregrasp_fraction * (q_pre - q_grasp)

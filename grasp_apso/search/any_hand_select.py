@@ -31,6 +31,7 @@ from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import robust_epsilon
 from .archive import wrists_distinct
+from .exact_seat import seat_fingers
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
 
@@ -51,6 +52,12 @@ ANALYSED = 8
 #: When the pre-grasp's fingers hit the object on the approach, the verification tries
 #: them opened these fractions of the way to their opening limits.
 OPENING = (0.5, 1.0)
+#: The reply's pre-grasp is the first of these fractions of the way from the grasp posture
+#: back to the search's pre-shape whose approach is clear (else the pre-shape itself): the
+#: fingers start just off their contacts, as DexGraspBench's pregrasp does, instead of wide
+#: open, from where fingers arriving one after another shove the object before the others
+#: touch it.
+NEAR = (0.25, 0.5)
 
 
 @dataclass
@@ -116,6 +123,12 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     decoded = c.decoded
     q, root = decoded.q[0], decoded.root[0]
     c.fcl = fcl_api.object_report(hc, q, root, obj)
+    if not c.fcl.legal:
+        # the sphere covers let an exact mesh press a little into the object: seat it
+        q, c.fcl = seat_fingers(fcl_api, hc, model.hand, q, decoded.q_pre[0], root, obj, c.fcl,
+                                model.settings.tolerance)
+        decoded.q[0] = q
+        decoded.closed[0, model.layout.joints] = q
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
     if settings is not None and c.forces is not None:
@@ -124,21 +137,32 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
         root_plan = pose @ root
         approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
         distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))
-        path = fcl_api.approach_report(hc, decoded.q_pre[0], root_plan, approach, options.approach_distance,
-                                       scene, obj, pose)
-        for fraction in OPENING if path.hits_object else ():
-            # The pre-shape's fingers sweep through the object on the way in: open them
-            # wider (the pre-shape joints kept) and approach again.
-            wider = opened(model.hand, decoded.q_pre[0], fraction)
-            again = fcl_api.approach_report(hc, wider, root_plan, approach, options.approach_distance, scene, obj,
-                                            pose)
-            if not again.hits_object and again.min_scene_distance >= options.clearance:
-                decoded.q_pre[0] = wider
-                path = again
+        reports, clear = [], False
+        for posture in pre_grasp_postures(model.hand, q, decoded.q_pre[0]):
+            # The nearest pre-grasp whose approach is clear: the closing then starts just off
+            # the contacts (DexGraspBench's pregrasp); a pre-shape whose fingers sweep through
+            # the object on the way in is opened wider (the pre-shape joints kept).
+            reports.append(fcl_api.approach_report(hc, posture, root_plan, approach, options.approach_distance,
+                                                   scene, obj, pose))
+            if not reports[-1].hits_object and reports[-1].min_scene_distance >= options.clearance:
+                decoded.q_pre[0] = posture
+                clear = True
                 break
+        # none clear: the search's pre-shape stays, its report says why
+        path = reports[-1] if clear else reports[len(NEAR)]
         c.scene_distance = min(distance, float(path.min_scene_distance))
         c.scene_clear = c.scene_clear and c.scene_distance >= options.clearance and not path.hits_object
     return c
+
+
+def pre_grasp_postures(hand, q: np.ndarray, q_open: np.ndarray) -> list[np.ndarray]:
+    """The pre-grasp postures (n,) tried for the grasp posture q, in order of preference:
+    each :data:`NEAR` fraction of the way from q back to the search's pre-shape ``q_open``
+    (the fingers just off their contacts), ``q_open`` itself, then ``q_open`` opened
+    :data:`OPENING` of the way to the opening limits."""
+    q, q_open = np.asarray(q, dtype=float), np.asarray(q_open, dtype=float)
+    return ([q + f * (q_open - q) for f in NEAR] + [q_open.copy()]
+            + [opened(hand, q_open, f) for f in OPENING])
 
 
 def opened(hand, q_pre: np.ndarray, fraction: float) -> np.ndarray:

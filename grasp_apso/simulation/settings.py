@@ -43,12 +43,14 @@ class SimulationSettings:
         three contacts with mu 0.5 carry the 1 N disturbance with margin (3 N of friction).
     pregrasp_fraction : float
         Where a general hand's fingers start closing: this fraction of the way from the
-        grasp posture back to the given pre-grasp (1: the pre-grasp itself). DexGraspBench
-        replays a pregrasp posture just off the contacts (BODex's data); the planner's
-        pre-grasp is the open approach posture, from which fingers arriving one after
-        another shove and turn the free object before the others touch it (Inspire, 9
-        objects on a table: best grasps held 1 of 7 closing from the pre-grasp, 6 of 7
-        from a quarter of the way).
+        grasp posture back to the given pre-grasp; 1 (the default): the pre-grasp itself,
+        as DexGraspBench replays a grasp's pregrasp posture. The planner's replies carry a
+        near pre-grasp (:data:`grasp_apso.search.any_hand_select.NEAR`: the fingers a
+        quarter of their closing travel off the contacts when that approach is clear), so
+        the check replays exactly what a client receives. (Closing from the search's
+        wide-open pre-shape instead, fingers arriving one after another shove the object:
+        Allegro, 21 objects on a table, best grasps held 8 of 20 from the wide pre-shape,
+        13 of 20 from the near pre-grasp.)
     close_time, squeeze_time, settle_time : float, s
         Durations of the closing ramp, the squeeze ramp and the hold before the tests.
     max_settle_time : float, s; rest_speed : float, m/s; rest_spin : float, rad/s
@@ -93,7 +95,7 @@ class SimulationSettings:
     max_turn: float = math.radians(15.0)
     squeeze: float = math.radians(8.0)
     squeeze_force: float = 2.0
-    pregrasp_fraction: float = 0.25
+    pregrasp_fraction: float = 1.0
     close_time: float = 0.3
     squeeze_time: float = 0.1
     settle_time: float = 0.2
