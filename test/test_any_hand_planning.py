@@ -199,8 +199,8 @@ def test_same_seed_same_result(hands, plans):
 
 
 def test_simulate_ranks_held_grasps_first(hands):
-    """With ``simulate`` every candidate of a general hand is checked in MuJoCo (SIM's
-    simulate_any_hand) and the held ones rank first."""
+    """With ``simulate`` every candidate of a general hand is checked in MuJoCo
+    (simulate_any_hand) and only held ones are returned when any held."""
     obj = builtin("cube")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
     options = PlanOptions(particles=30, iterations=20, max_grasps=2, simulate=True)
@@ -209,6 +209,8 @@ def test_simulate_ranks_held_grasps_first(hands):
     assert all(s in (0, 1) for s in sims), sims
     assert sims == sorted(sims, reverse=True)
     assert all(np.isfinite(c.sim_max_shift) for c in result.candidates)
+    # grasps that dropped are not returned next to ones that held
+    assert 1 in sims and set(sims) == {1}, sims
 
 
 def test_paper_hand_result_names_its_hand():

@@ -253,8 +253,9 @@ def test_power_grasp_verdict_matches_the_object_in_mujoco(hands, name):
     hand = hands[name]
     obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
     rec = Recorder(hand.root_link)
-    # A caging posture (90 % closed), not a touching one: the fingers close from the open hand.
-    settings = replace(QUICK, pregrasp_fraction=1.0)
+    # A caging posture (90 % closed), not a touching one: the fingers close from the open hand,
+    # quickly (a slow wrap lets the ball roll out before the cage closes).
+    settings = replace(QUICK, pregrasp_fraction=1.0, hand_close_time=0.3, hand_squeeze_time=0.1)
     res = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=rec)
     assert res.held == _independent_held(rec, obj, pose, settings), res
     if name == "shadow":  # the Shadow hand's fingers and thumb cage the ball against its palm
@@ -265,7 +266,8 @@ def test_full_protocol_shadow_power_grasp_holds_and_is_deterministic(hands):
     hand = hands["shadow"]
     obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
     rec = Recorder(hand.root_link)
-    settings = SimulationSettings(pregrasp_fraction=1.0)  # a caging posture: closing from the open hand
+    # a caging posture: closing quickly from the open hand
+    settings = SimulationSettings(pregrasp_fraction=1.0, hand_close_time=0.3, hand_squeeze_time=0.1)
     first = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings, observer=rec)
     second = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze, settings=settings)
     assert first.held and _independent_held(rec, obj, pose, settings), first

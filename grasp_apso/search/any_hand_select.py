@@ -309,9 +309,9 @@ def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
 
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
     """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
-    was tried, or ``should_stop``). Returns the grasps to rank (every held one, then the
-    first dropped or unsimulated ones up to ``max_grasps``), their results (None: not
-    simulated) and a note."""
+    was tried, or ``should_stop``). Returns the grasps to rank (the held ones and those not
+    simulated; when none held, the first dropped ones), up to ``max_grasps``, their
+    results (None: not simulated) and a note."""
     sim = _module("grasp_apso.simulation.any_hand")
     if sim is None:
         return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
@@ -334,8 +334,15 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
             other.extend((k, None) for k in checked[position:])
             break
         (held if result.held else other).append((c, result))
-    chosen = held + other[:max(0, options.max_grasps - len(held))]
+    # Grasps that dropped in the simulation are not returned next to ones that held (as
+    # grasps without force closure are not next to ones with it); with none held, the
+    # best of them are, their sim_result saying so.
+    unsimulated = [(c, r) for c, r in other if r is None]
+    dropped = [(c, r) for c, r in other if r is not None]
+    chosen = (held + unsimulated if held else other)[:options.max_grasps]
     note = "simulation stopped at the time bound" if stopped else ""
+    if held and dropped:
+        note = "; ".join(n for n in (note, f"{len(dropped)} grasps that dropped in the simulation left out") if n)
     if failure:
         note = f"not simulated: {failure}"
     return [c for c, _ in chosen], [r for _, r in chosen], note

@@ -8,7 +8,7 @@ joints; the paper's hand: its 18 names, the wrist angles held constant), so that
 =====  =================================  =============================================
 point  posture                            time from start
 =====  =================================  =============================================
-0      ``pre_grasp_positions`` (open)     0 s
+0      ``pre_grasp_positions``            0 s
 1      ``joint_positions`` (closed)       :data:`CLOSE_TIME`
 2      the squeeze                        :data:`CLOSE_TIME` + :data:`SQUEEZE_TIME`
 =====  =================================  =============================================
@@ -29,13 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from .motion_times import CLOSE_TIME, SQUEEZE_TIME
+
 __all__ = ["CLOSE_TIME", "SQUEEZE_TIME", "hand_trajectory", "squeeze_positions"]
 
-#: s, pre-grasp -> grasp posture. Slower than the simulation's 0.3 s ramp: a real hand's
-#: position controllers follow a one-second closing without overshoot into the object.
-CLOSE_TIME = 1.0
-#: s, grasp -> squeeze posture (the simulation squeezes in 0.1 s; a real hand more gently).
-SQUEEZE_TIME = 0.5
+
 
 
 def _is_paper_hand(hand: Any) -> bool:

@@ -7,9 +7,11 @@ postures given over ``hand.actuated_joints``:
 1. The scene (:mod:`.any_hand_model`): the hand from its file, its root link held at
    ``root_pose``, position servos on the actuated joints, the object a free body at
    ``obj_pose``, the scene's planes and obstacles, gravity off.
-2. The fingers start ``pregrasp_fraction`` of the way from ``q_grasp`` back to ``q_pre``
-   (just off the contacts, as DexGraspBench's pregrasp); the servo targets move to ``q_grasp`` in
-   ``close_time``, then to ``q_squeeze`` in ``squeeze_time``, and hold there
+2. The fingers start at ``q_pre`` (``pregrasp_fraction`` 1: the planner's replies carry a
+   near pre-grasp, just off the contacts, as DexGraspBench's pregrasp; a smaller fraction
+   starts that far from ``q_grasp`` back to ``q_pre``); the servo targets move to ``q_grasp`` in
+   ``hand_close_time``, then to ``q_squeeze`` in ``hand_squeeze_time`` (the reply's
+   ``hand_trajectory`` times), and hold there
    ``settle_time`` (longer, up to ``max_settle_time``, until the object rests).
 3. The scene's contacts are switched off (the object is in the hand, off the table), then
    six disturbances of ``object_mass * disturbance`` (10 m/s^2), ``duration`` (2 s) each,
@@ -208,10 +210,10 @@ def simulate_any_hand(hand, obj, obj_pose, root_pose, q_pre, q_grasp, q_squeeze,
     notify("pre_grasp", model, data)
     try:
         check_stop(should_stop, "the closing")
-        ramp(model, data, ((pre, grasp, settings.close_time),), settings.timestep)
+        ramp(model, data, ((pre, grasp, settings.hand_close_time),), settings.timestep)
         notify("grasp", model, data)
         check_stop(should_stop, "the squeeze")
-        ramp(model, data, ((grasp, squeeze, settings.squeeze_time),), settings.timestep)
+        ramp(model, data, ((grasp, squeeze, settings.hand_squeeze_time),), settings.timestep)
         data.ctrl[:] = squeeze
         settle(model, data, settings, sc.object_body)
     except mujoco.FatalError as exc:  # pragma: no cover - unstable physics

@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..search.motion_times import CLOSE_TIME, SQUEEZE_TIME
 from .convex import ConvexSettings
 
 __all__ = ["SimulationSettings"]
@@ -52,7 +53,12 @@ class SimulationSettings:
         Allegro, 21 objects on a table, best grasps held 8 of 20 from the wide pre-shape,
         13 of 20 from the near pre-grasp.)
     close_time, squeeze_time, settle_time : float, s
-        Durations of the closing ramp, the squeeze ramp and the hold before the tests.
+        Durations of the closing ramp, the squeeze ramp and the hold before the tests (the
+        paper hand's check, its published protocol).
+    hand_close_time, hand_squeeze_time : float, s
+        A general hand's closing and squeeze ramps: the times of the reply's
+        ``hand_trajectory`` (:mod:`grasp_apso.search.motion_times`), so that the check
+        replays the motion a client is given.
     max_settle_time : float, s; rest_speed : float, m/s; rest_spin : float, rad/s
         After ``settle_time`` the hold goes on until the object rests (its speed and spin
         below these) or ``max_settle_time`` has passed: the squeeze leaves a transient
@@ -98,6 +104,8 @@ class SimulationSettings:
     pregrasp_fraction: float = 1.0
     close_time: float = 0.3
     squeeze_time: float = 0.1
+    hand_close_time: float = CLOSE_TIME
+    hand_squeeze_time: float = SQUEEZE_TIME
     settle_time: float = 0.2
     max_settle_time: float = 1.0
     rest_speed: float = 0.002
@@ -119,7 +127,8 @@ class SimulationSettings:
             "rolling_friction": (0.0, 0.1), "disturbance": (0.0, 1000.0), "duration": (1e-3, 60.0),
             "max_shift": (1e-4, 10.0), "max_turn": (1e-4, math.pi), "squeeze": (0.0, 0.5), "squeeze_force": (0.0, 100.0),
             "pregrasp_fraction": (0.0, 1.0),
-            "close_time": (0.0, 10.0), "squeeze_time": (0.0, 10.0), "settle_time": (0.0, 10.0),
+            "close_time": (0.0, 10.0), "squeeze_time": (0.0, 10.0),
+            "hand_close_time": (0.0, 10.0), "hand_squeeze_time": (0.0, 10.0), "settle_time": (0.0, 10.0),
             "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
             "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
             "max_torque": (1e-3, 1e3), "joint_damping": (0.0, 1e3), "joint_armature": (0.0, 1.0),
