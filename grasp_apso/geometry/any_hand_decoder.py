@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from . import any_hand_kernels as hk
+from .any_hand_approach import object_approach_margins
 from . import kernels
 from .any_hand_scene import packed_scene, scene_margins
 from .any_hand_tables import HandTables, hand_tables
@@ -308,7 +309,9 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
         if ok.any():
             open_poses = np.empty((int(ok.sum()),) + poses.shape[1:])
             hk.link_poses(np.ascontiguousarray(q0[ok]), model.kin, open_poses)
-            margin[ok] = scene_margins(model, root[ok], np.ascontiguousarray(poses[ok]), open_poses)
+            margin[ok] = np.minimum(
+                scene_margins(model, root[ok], np.ascontiguousarray(poses[ok]), open_poses),
+                object_approach_margins(model, rot[ok], trans[ok], q0[ok], model.approach_distance))
     return AnyDecoded(closed=closed, q_pre=q0, q=q, root=root, wrist=wrist, contact=contact,
                       contact_points=points, contact_normals=normals, tip_gap=tip_gap, pad_points=pad_pos,
                       penetration=penetration, blocked=blocked, link_contact=link_contact, finger_collision=collide,

@@ -1,0 +1,71 @@
+"""The object along a general hand's approach, in the decoder (the grid's signed distance).
+
+The python-fcl verification (:func:`.any_hand_fcl.approach_report`) refuses a grasp whose
+open hand passes through the object on its way in from the pre-grasp; the search must
+see it too, or it converges on such grasps and every one of them is refused at the end
+(measured: the Inspire hand on the apple, the orange and the soup can on a table: the
+thumb, swung under the object by its rotation joint, sweeps through it 50-55 mm before
+the grasp; 72 of 72 verified grasps refused, no plan). :func:`object_approach_margins`
+measures, for the open pre-shape moved back along the palm normal by each of
+:data:`APPROACH_STEPS` beyond :data:`.hand_fcl.CONTACT_ZONE`, the least clearance of the
+hand's collision spheres from the object (compiled kernels of the closing).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import any_hand_kernels as hk
+from .hand_fcl import CONTACT_ZONE
+
+__all__ = ["object_approach_margins", "APPROACH_STEPS", "APPROACH_MARGIN"]
+
+#: Retreats checked, as fractions of the approach distance (the python-fcl check steps every
+#: 5 mm; a link sweeping through the object is inside it for a stretch of the approach).
+APPROACH_STEPS = tuple(np.linspace(0.125, 1.0, 8))
+#: m: the open hand's spheres keep this far from the object on the way in (a link's exact
+#: mesh may stick out of its sphere cover by a millimetre or two, and the steps are 10 mm apart).
+APPROACH_MARGIN = 0.002
+#: Clearances above this (m) are lower bounds: only the sign of the margin decides.
+CUTOFF = 0.004
+
+
+def object_approach_margins(model, rot: np.ndarray, trans: np.ndarray, q_open: np.ndarray,
+                            approach_distance: float) -> np.ndarray:
+    """Least clearance (m; negative: inside the object) of the open hand along the approach.
+
+    Parameters
+    ----------
+    model : AnyHandModel
+    rot : (P, 3, 3) float; trans : (P, 3) float, m
+        The root at the grasp, object frame.
+    q_open : (P, n) float, rad or m
+        The open pre-shapes.
+    approach_distance : float, m
+
+    Returns
+    -------
+    (P,) float, m: the clearance less :data:`APPROACH_MARGIN`; ``inf`` when no retreat lies
+    beyond the contact zone.
+    """
+    t = model.tables
+    n_p, n_f, lmax = len(rot), t.n_fingers, t.finger_link.shape[1]
+    grid = (model.sdf._values64, model.sdf._origin64, float(model.sdf.spacing))
+    rot = np.ascontiguousarray(rot)
+    q_open = np.ascontiguousarray(q_open)
+    approach = rot @ t.basis[:, 2]                                     # (P, 3) object frame
+    rows = np.stack(np.meshgrid(np.arange(n_p), np.arange(n_f), indexing="ij"), axis=-1).reshape(-1, 2)
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    best = np.full(n_p, np.inf)
+    link_clear = np.empty((n_p, n_f, lmax))
+    pad_pos, pad_gap, palm = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f)), np.empty(n_p)
+    for fraction in APPROACH_STEPS:
+        back = fraction * float(approach_distance)
+        if back <= CONTACT_ZONE:
+            continue
+        moved = np.ascontiguousarray(trans - back * approach)
+        link_clear.fill(np.inf)
+        hk.finger_clearances(*grid, rot, moved, q_open, rows, model.kin, CUTOFF, link_clear, pad_pos, pad_gap)
+        hk.palm_clearance(*grid, rot, moved, t.palm_groups, t.palm_pose, model.kin, CUTOFF, palm)
+        best = np.minimum(best, np.minimum(link_clear.min(axis=(1, 2)), palm))
+    return best - APPROACH_MARGIN
