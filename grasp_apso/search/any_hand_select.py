@@ -201,7 +201,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
 
     The pool is the swarm's best, the leaders' archive and the particles' personal bests.
     Up to :data:`ANALYSED` times ``max_grasps`` of them with two or more contacts, in
-    descending fitness, are analysed (:func:`_analyse`); then verified with python-fcl in
+    descending fitness, are analysed (:func:`_analyse`, only those that can still be
+    verified); then verified with python-fcl in
     the order balanced first, fitness within (stable), distinct wrists only, until
     ``max_grasps`` (with ``simulate``: :data:`SPARE` times that) are kept. Without a
     scene at least the best one even when not valid."""
@@ -219,32 +220,53 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
-    analysed = [_analyse(model, decoded.take(np.array([i])), fitness[i], options, obj)
-                for i in [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]]
-    if not analysed:  # nothing with two contacts: the fittest, to report why
-        analysed = [_analyse(model, decoded.take(order[:1]), fitness[order[0]], options, obj)]
-    # stable: balanced, then other force closure, then the rest, by fitness within each
-    analysed.sort(key=lambda c: (not c.balanced, not c.force_closure))
+    eligible = [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]
+    if not eligible:  # nothing with two contacts: the fittest, to report why
+        eligible = [int(order[0])]
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
     rejected = 0
     wanted = (SPARE if options.simulate else 1) * options.max_grasps
-    for c in analysed:
-        if len(kept) >= wanted:
-            break
-        one = c.decoded
-        if kept and not all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3],
-                                            one.wrist[:, :3, :3], one.wrist[:, :3, 3], options.min_orientation_gap,
-                                            options.min_position_gap)[0] for k in kept):
-            continue
+
+    def distinct(one) -> bool:
+        return all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3], one.wrist[:, :3, :3],
+                                   one.wrist[:, :3, 3], options.min_orientation_gap, options.min_position_gap)[0]
+                   for k in kept)
+
+    def verify(c: AnyChecked) -> None:
+        nonlocal first, rejected
         checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
         else:
             rejected += 1
+
+    # Verified in the order balanced, then other force closure, then the rest, by fitness
+    # within each (stable), distinct wrists only. Lazily, with the same outcome: the
+    # balanced ones are verified as the fitness order reaches them, the others after; a
+    # grasp not distinct from the grasps kept when the fitness order reaches it is never
+    # verified (the kept ones only grow), so it is not analysed either.
+    later: list[AnyChecked] = []
+    for i in eligible:
+        if len(kept) >= wanted:
+            break
+        one = decoded.take(np.array([i]))
+        if not distinct(one):
+            continue
+        c = _analyse(model, one, fitness[i], options, obj)
+        if c.balanced:
+            verify(c)
+        else:
+            later.append(c)
+    later.sort(key=lambda c: not c.force_closure)
+    for c in later:
+        if len(kept) >= wanted:
+            break
+        if distinct(c.decoded):
+            verify(c)
     if not kept:
         if scene is not None or first is None:
             raise PlanningError(
