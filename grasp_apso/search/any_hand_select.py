@@ -70,6 +70,7 @@ class AnyChecked:
     squeeze: np.ndarray | None = None
     robust_epsilon: float = 0.0
     forces: np.ndarray | None = None   # (contacts,) N, the squeeze's contact forces
+    closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
 
     @property
     def balanced(self) -> bool:
@@ -88,23 +89,39 @@ def _module(name: str):
 
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     """The analytic part of the verification of one decoded grasp (no collision check):
-    epsilon and force closure, the robust epsilon, the closing imbalance and the squeeze."""
+    legality and the closing imbalance; the epsilon, force closure and robust epsilon
+    (:func:`_closure`) when the closing is balanced enough for the grasp to rank as
+    balanced (the others get them when the selection reaches them). The squeeze of a grasp
+    with closing forces is left to its verification (None until then)."""
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
-    eps, closure, robust = 0.0, False, 0.0
-    if mask.sum() >= 2:
-        eps, closure = epsilon_quality(decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
-                                       np.asarray(obj.center_of_mass, float), options.friction,
-                                       torque_scale=float(obj.characteristic_radius))
-        if closure:
-            robust = float(robust_epsilon(obj, decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
-                                          mu=options.friction, edges=options.friction_edges,
-                                          torque_scale=float(obj.characteristic_radius)))
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    imbalance, squeeze, forces = _closing(model, decoded, obj)
-    return AnyChecked(decoded, float(fitness), float(eps), bool(closure), bool(legal and mask.sum() >= 2),
-                      scene_clear, math.inf, None, "", imbalance, squeeze, robust, forces)
+    imbalance, forces = _closing(model, decoded, obj)
+    squeeze = squeeze_posture(model, decoded.q[0]) if forces is None else None
+    c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
+                   None, "", imbalance, squeeze, 0.0, forces)
+    if imbalance <= MAX_IMBALANCE:
+        _closure(c, options, obj)
+    return c
+
+
+def _closure(c: AnyChecked, options, obj) -> None:
+    """The epsilon and force closure of an analysed grasp, and its robust epsilon when it
+    can rank as balanced (force closure, imbalance at most :data:`MAX_IMBALANCE`)."""
+    decoded = c.decoded
+    mask = decoded.contact[0]
+    c.closure_known = True
+    if mask.sum() < 2:
+        return
+    points, normals = decoded.contact_points[0][mask], decoded.contact_normals[0][mask]
+    eps, closure = epsilon_quality(points, normals, np.asarray(obj.center_of_mass, float), options.friction,
+                                   torque_scale=float(obj.characteristic_radius))
+    c.epsilon, c.force_closure = float(eps), bool(closure)
+    if closure and c.imbalance <= MAX_IMBALANCE:
+        c.robust_epsilon = float(robust_epsilon(obj, points, normals, mu=options.friction,
+                                                edges=options.friction_edges,
+                                                torque_scale=float(obj.characteristic_radius)))
 
 
 def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
@@ -160,21 +177,19 @@ def _sim_settings():
     return settings.SimulationSettings() if settings is not None else None
 
 
-def _closing(model, decoded, obj) -> tuple[float, np.ndarray, np.ndarray | None]:
-    """The closing imbalance of one decoded grasp, its squeezed posture (n,) and the
-    contact forces (N, newtons) it exerts: the balanced forces at the pads (mean
-    ``squeeze_force``) through the servos' gain; with fewer than two contacts the uniform
-    squeeze (forces None)."""
+def _closing(model, decoded, obj) -> tuple[float, np.ndarray | None]:
+    """The closing imbalance of one decoded grasp and the contact forces (N, newtons) its
+    squeeze exerts: the balanced forces at the pads (mean ``squeeze_force``); with fewer
+    than two contacts (the uniform squeeze) imbalance 1 and forces None."""
     mask = decoded.contact[0]
-    q = decoded.q[0]
     settings = _sim_settings()
     if mask.sum() < 2 or settings is None:
-        return 1.0, squeeze_posture(model, q), None
+        return 1.0, None
     fingers = np.flatnonzero(mask)
     points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
     forces, imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
                                        float(obj.characteristic_radius), settings.squeeze_force)
-    return imbalance, _squeeze(model, decoded, obj, forces, settings), forces
+    return imbalance, forces
 
 
 def _squeeze(model, decoded, obj, forces, settings, report=None) -> np.ndarray:
@@ -238,6 +253,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     def verify(c: AnyChecked) -> None:
         nonlocal first, rejected
         checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
+        if checked.squeeze is None:  # not squeezed by the verification (no python-fcl)
+            checked.squeeze = _squeeze(model, checked.decoded, obj, checked.forces, _sim_settings())
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
@@ -261,8 +278,19 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
             verify(c)
         else:
             later.append(c)
-    later.sort(key=lambda c: not c.force_closure)
-    for c in later:
+    rest: list[AnyChecked] = []
+    for c in later:  # force closure first (known now, for the grasps still distinct), then the rest
+        if len(kept) >= wanted:
+            break
+        if not distinct(c.decoded):
+            continue
+        if not c.closure_known:
+            _closure(c, options, obj)
+        if c.force_closure:
+            verify(c)
+        else:
+            rest.append(c)
+    for c in rest:
         if len(kept) >= wanted:
             break
         if distinct(c.decoded):
