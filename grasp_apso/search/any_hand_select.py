@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import PlanningError, SimulationError
 from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
-from ..quality.robustness import robust_epsilon
+from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .archive import wrists_distinct
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -119,9 +119,14 @@ def _closure(c: AnyChecked, options, obj) -> None:
                                    torque_scale=float(obj.characteristic_radius))
     c.epsilon, c.force_closure = float(eps), bool(closure)
     if closure and c.imbalance <= MAX_IMBALANCE:
-        c.robust_epsilon = float(robust_epsilon(obj, points, normals, mu=options.friction,
-                                                edges=options.friction_edges,
-                                                torque_scale=float(obj.characteristic_radius)))
+        uncertainty = normal_uncertainty(obj, points)
+        # Certain normals (contacts inside flat faces) leave the cones as they are: the
+        # robust epsilon is the epsilon (same cones: epsilon_quality's 8 edges), its hull
+        # need not be built again.
+        same = not uncertainty.any() and options.friction_edges == 8
+        c.robust_epsilon = c.epsilon if same else float(robust_epsilon(
+            obj, points, normals, mu=options.friction, uncertainty=uncertainty, edges=options.friction_edges,
+            torque_scale=float(obj.characteristic_radius)))
 
 
 def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
