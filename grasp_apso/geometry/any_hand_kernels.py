@@ -20,12 +20,22 @@ import math
 import numba
 import numpy as np
 
-from .kernels import _grid_distance
+from . import kernels as _kernels
 
 _jit = numba.njit(cache=True, nogil=True)
 #: Helpers that take the kinematic tuple are inlined into their callers: a call passing the
 #: tuple's 30 arrays costs their reference counting, more than the helper's arithmetic.
 _inline = numba.njit(cache=True, nogil=True, inline="always")
+#: The grid's trilinear look-up (:func:`.kernels._grid_value`) inlined here: a compiled
+#: call passing the grid array costs its reference counting, about as much as the look-up.
+_grid_value = _inline(_kernels._grid_value.py_func)
+
+
+@_inline
+def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
+    """:func:`.kernels._grid_distance`, inlined."""
+    value, outside = _grid_value(values, ox, oy, oz, inv, spacing, x, y, z)
+    return value + outside
 
 # indices into the kinematic tuple (see kin())
 _A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
@@ -103,13 +113,13 @@ def finger_poses(q, f, K, poses, tmp, local):
                 poses[l, i, 3] = a0 * t0 + a1 * t1 + a2 * t2 + a3
 
 
-@_jit
+@_inline
 def _point(rot, trans, pose, p, out):
     """out = rot @ (pose @ p) + trans (object frame)."""
     _point_xyz(rot, trans, pose, p[0], p[1], p[2], out)
 
 
-@_jit
+@_inline
 def _point_xyz(rot, trans, pose, px, py, pz, out):
     """:func:`_point` of the point (px, py, pz): callers pass a table's elements, not a view of its row."""
     for i in range(3):
@@ -119,9 +129,9 @@ def _point_xyz(rot, trans, pose, px, py, pz, out):
         out[i] = rot[i, 0] * x + rot[i, 1] * y + rot[i, 2] * z + trans[i]
 
 
-@_jit
+@_inline
 def _point_at(rot, trans, poses, l, px, py, pz, out):
-    """:func:`_point_xyz` with the pose ``poses[l]`` read in place."""
+    """:func:`_point_xyz` with the pose ``poses[l]`` read in place (no view of it)."""
     for i in range(3):
         out[i] = poses[l, i, 0] * px + poses[l, i, 1] * py + poses[l, i, 2] * pz + poses[l, i, 3]
     x, y, z = out[0], out[1], out[2]
@@ -136,18 +146,19 @@ def _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g1, K, 
     wanted: the closing sweep)."""
     ox, oy, oz = origin[0], origin[1], origin[2]
     inv = 1.0 / spacing
-    grc, sc = K[_GRCEN], K[_SC]
+    # The tables bound once: each read of a tuple's item in a loop costs a reference count.
+    grc, sc, grr, grs, grn, sr = K[_GRCEN], K[_SC], K[_GRR], K[_GRS], K[_GRC], K[_SR]
     best = np.inf
     for g in range(g0, g1):
         _point_at(rot, trans, poses, l, grc[g, 0], grc[g, 1], grc[g, 2], c)
-        d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_GRR][g]
+        d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - grr[g]
         if d > cutoff:
             best = min(best, d)
             continue
-        s0 = K[_GRS][g]
-        for s in range(s0, s0 + K[_GRC][g]):
+        s0 = grs[g]
+        for s in range(s0, s0 + grn[g]):
             _point_at(rot, trans, poses, l, sc[s, 0], sc[s, 1], sc[s, 2], c)
-            d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - K[_SR][s]
+            d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - sr[s]
             best = min(best, d)
             if first_touch and best <= 0.0:
                 return best
@@ -160,22 +171,24 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
     ``moving_only``: only the links the closing moves (the others keep link_out)."""
     best = np.inf
     ox, oy, oz = origin[0], origin[1], origin[2]
+    inv = 1.0 / spacing
+    mov, lr, lc, gs, gc, padb = K[_MOV], K[_LR], K[_LC], K[_GS], K[_GC], K[_PADB]
     for l in range(K[_NL][f]):
-        if moving_only and K[_MOV][f, l] == 0:
+        if moving_only and mov[f, l] == 0:
             continue
-        if K[_LR][f, l] < 0.0:
+        if lr[f, l] < 0.0:
             link_out[l] = np.inf
             continue
-        _point_at(rot, trans, poses, l, K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
-        d = _grid_distance(values, ox, oy, oz, 1.0 / spacing, spacing, c[0], c[1], c[2]) - K[_LR][f, l]
+        _point_at(rot, trans, poses, l, lc[f, l, 0], lc[f, l, 1], lc[f, l, 2], c)
+        d = _grid_distance(values, ox, oy, oz, inv, spacing, c[0], c[1], c[2]) - lr[f, l]
         if d > cutoff:
             link_out[l] = d
             best = min(best, d)
             continue
-        g0 = K[_GS][f, l]
-        d = _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g0 + K[_GC][f, l], K, cutoff, c,
-                              moving_only and K[_PADB][f, l] == 0)
-        if K[_PADB][f, l]:
+        g0 = gs[f, l]
+        d = _groups_clearance(values, origin, spacing, rot, trans, poses, l, g0, g0 + gc[f, l], K, cutoff, c,
+                              moving_only and padb[f, l] == 0)
+        if padb[f, l]:
             # The pad link's cover (and that of links fixed to it: one body) may enter by
             # its stray (it lies outside the exact surface); the pad sphere (the exact
             # surface at the pad) may not.
@@ -189,10 +202,11 @@ def _finger_clearance(values, origin, spacing, rot, trans, poses, f, K, cutoff, 
 
 @_inline
 def _set_closing(q, q0, f, K, s):
+    jt, ji = K[_JT], K[_JI]
     for k in range(K[_JC][f]):
-        target = K[_JT][f, k]
+        target = jt[f, k]
         if not math.isnan(target):
-            j = K[_JI][f, k]
+            j = ji[f, k]
             q[j] = q0[j] + s * (target - q0[j])
 
 
@@ -218,25 +232,28 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
     per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance.
     """
     n_p, n_f, lmax = q0.shape[0], K[_NL].shape[0], link_clear.shape[2]
+    n_links, mov, jc, ji = K[_NL], K[_MOV], K[_JC], K[_JI]
     poses = np.empty((lmax, 4, 4))
     tmp = np.empty((4, 4))
     local = np.empty((4, 4))
     lc = np.empty(lmax)
     c = np.empty(3)
     q = np.empty(q0.shape[1])
+    qp = np.empty(q0.shape[1])  # the particle's pre-shape (a copy: a row view per use costs more)
     for p in range(n_p):
         r, t = rot[p], trans[p]
         for j in range(q0.shape[1]):
             q_out[p, j] = q0[p, j]
+            qp[j] = q0[p, j]
         for f in range(n_f):
             for j in range(q0.shape[1]):
-                q[j] = q0[p, j]
+                q[j] = qp[j]
             finger_poses(q, f, K, poses, tmp, local)
             c0 = _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c)
             start_clear[p, f] = c0
             fixed = np.inf  # the links the closing does not move keep their clearance
-            for l in range(K[_NL][f]):
-                if K[_MOV][f, l] == 0:
+            for l in range(n_links[f]):
+                if mov[f, l] == 0:
                     fixed = min(fixed, lc[l])
             s = 0.0
             met = c0 <= 0.0
@@ -244,7 +261,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                 lo, hi = 0.0, -1.0
                 for k in range(1, coarse + 1):
                     sk = k / coarse
-                    _set_closing(q, q0[p], f, K, sk)
+                    _set_closing(q, qp, f, K, sk)
                     finger_poses(q, f, K, poses, tmp, local)
                     if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc, c,
                                                     True)) <= 0.0:
@@ -257,7 +274,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     met = True
                     for _ in range(refine):
                         mid = 0.5 * (lo + hi)
-                        _set_closing(q, q0[p], f, K, mid)
+                        _set_closing(q, qp, f, K, mid)
                         finger_poses(q, f, K, poses, tmp, local)
                         if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc,
                                                         c, True)) <= 0.0:
@@ -265,14 +282,14 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                         else:
                             lo = mid
                     s = lo
-            _set_closing(q, q0[p], f, K, s)
+            _set_closing(q, qp, f, K, s)
             finger_poses(q, f, K, poses, tmp, local)
             _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, link_clear[p, f], c)
             pad_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, pad_pos[p, f])
             s_out[p, f] = s
             stopped[p, f] = met
-            for k in range(K[_JC][f]):
-                j = K[_JI][f, k]
+            for k in range(jc[f]):
+                j = ji[f, k]
                 q_out[p, j] = q[j]
 
 
@@ -285,9 +302,12 @@ def finger_clearances(values, origin, spacing, rot, trans, q, rows, K, cutoff, l
     tmp = np.empty((4, 4))
     local = np.empty((4, 4))
     c = np.empty(3)
+    qp = np.empty(q.shape[1])
     for i in range(rows.shape[0]):
         p, f = rows[i, 0], rows[i, 1]
-        finger_poses(q[p], f, K, poses, tmp, local)
+        for j in range(q.shape[1]):
+            qp[j] = q[p, j]
+        finger_poses(qp, f, K, poses, tmp, local)
         _finger_clearance(values, origin, spacing, rot[p], trans[p], poses, f, K, cutoff, link_clear[p, f], c)
         pad_gap[p, f] = _pad(values, origin, spacing, rot[p], trans[p], poses, f, K, pad_pos[p, f])
 
@@ -297,9 +317,26 @@ def link_poses(q, K, out):
     """Every finger link's pose in the root frame: q (P, n) -> out (P, F, Lmax, 4, 4)."""
     tmp = np.empty((4, 4))
     local = np.empty((4, 4))
+    qp = np.empty(q.shape[1])
     for p in range(q.shape[0]):
+        for j in range(q.shape[1]):
+            qp[j] = q[p, j]
         for f in range(K[_NL].shape[0]):
-            finger_poses(q[p], f, K, out[p, f], tmp, local)
+            finger_poses(qp, f, K, out[p, f], tmp, local)
+
+
+@_inline
+def _posed(poses, p, f, l, x, y, z):
+    """The point (x, y, z) of link l of finger f placed by ``poses[p, f, l]``: a tuple."""
+    return (poses[p, f, l, 0, 0] * x + poses[p, f, l, 0, 1] * y + poses[p, f, l, 0, 2] * z + poses[p, f, l, 0, 3],
+            poses[p, f, l, 1, 0] * x + poses[p, f, l, 1, 1] * y + poses[p, f, l, 1, 2] * z + poses[p, f, l, 1, 3],
+            poses[p, f, l, 2, 0] * x + poses[p, f, l, 2, 1] * y + poses[p, f, l, 2, 2] * z + poses[p, f, l, 2, 3])
+
+
+@_inline
+def _apart(a, b, limit):
+    """True when the points a and b (tuples) are at least ``limit`` apart."""
+    return math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2) >= limit
 
 
 @_jit
@@ -307,13 +344,10 @@ def finger_overlaps(poses, pairs, K, allowed, out):
     """Fingers whose spheres overlap another finger's by more than ``allowed`` (m).
 
     poses (P, F, Lmax, 4, 4) root frame; pairs (K, 4) f1, l1, f2, l2; out (P, F) bool.
+    Link bounding spheres, then group bounding spheres, then the spheres of two groups.
     """
-    a = np.empty(3)
-    b = np.empty(3)
-    eye = np.zeros((3, 3))
-    zero = np.zeros(3)
-    for i in range(3):
-        eye[i, i] = 1.0
+    lc, lr, gs, gc, grc, grr = K[_LC], K[_LR], K[_GS], K[_GC], K[_GRCEN], K[_GRR]
+    grs, grn, sc, sr = K[_GRS], K[_GRC], K[_SC], K[_SR]
     for p in range(poses.shape[0]):
         for f in range(out.shape[1]):
             out[p, f] = False
@@ -321,21 +355,26 @@ def finger_overlaps(poses, pairs, K, allowed, out):
             f1, l1, f2, l2 = pairs[k, 0], pairs[k, 1], pairs[k, 2], pairs[k, 3]
             if out[p, f1] and out[p, f2]:
                 continue
-            hit = False
-            p1, p2 = poses[p, f1, l1], poses[p, f2, l2]
-            _point(eye, zero, p1, K[_LC][f1, l1], a)
-            _point(eye, zero, p2, K[_LC][f2, l2], b)
-            d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-            if d >= K[_LR][f1, l1] + K[_LR][f2, l2] - allowed:
+            a = _posed(poses, p, f1, l1, lc[f1, l1, 0], lc[f1, l1, 1], lc[f1, l1, 2])
+            b = _posed(poses, p, f2, l2, lc[f2, l2, 0], lc[f2, l2, 1], lc[f2, l2, 2])
+            if _apart(a, b, lr[f1, l1] + lr[f2, l2] - allowed):
                 continue
-            for g1 in range(K[_GS][f1, l1], K[_GS][f1, l1] + K[_GC][f1, l1]):
-                _point(eye, zero, p1, K[_GRCEN][g1], a)
-                for g2 in range(K[_GS][f2, l2], K[_GS][f2, l2] + K[_GC][f2, l2]):
-                    _point(eye, zero, p2, K[_GRCEN][g2], b)
-                    d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-                    if d >= K[_GRR][g1] + K[_GRR][g2] - allowed:
+            hit = False
+            for g1 in range(gs[f1, l1], gs[f1, l1] + gc[f1, l1]):
+                a = _posed(poses, p, f1, l1, grc[g1, 0], grc[g1, 1], grc[g1, 2])
+                for g2 in range(gs[f2, l2], gs[f2, l2] + gc[f2, l2]):
+                    b = _posed(poses, p, f2, l2, grc[g2, 0], grc[g2, 1], grc[g2, 2])
+                    if _apart(a, b, grr[g1] + grr[g2] - allowed):
                         continue
-                    hit = _spheres_overlap(p1, p2, g1, g2, K, allowed)
+                    for s1 in range(grs[g1], grs[g1] + grn[g1]):
+                        u = _posed(poses, p, f1, l1, sc[s1, 0], sc[s1, 1], sc[s1, 2])
+                        for s2 in range(grs[g2], grs[g2] + grn[g2]):
+                            v = _posed(poses, p, f2, l2, sc[s2, 0], sc[s2, 1], sc[s2, 2])
+                            if not _apart(u, v, sr[s1] + sr[s2] - allowed):
+                                hit = True
+                                break
+                        if hit:
+                            break
                     if hit:
                         break
                 if hit:
@@ -346,31 +385,14 @@ def finger_overlaps(poses, pairs, K, allowed, out):
 
 
 @_jit
-def _spheres_overlap(p1, p2, g1, g2, K, allowed):
-    eye = np.zeros((3, 3))
-    zero = np.zeros(3)
-    for i in range(3):
-        eye[i, i] = 1.0
-    a = np.empty(3)
-    b = np.empty(3)
-    for s1 in range(K[_GRS][g1], K[_GRS][g1] + K[_GRC][g1]):
-        _point(eye, zero, p1, K[_SC][s1], a)
-        for s2 in range(K[_GRS][g2], K[_GRS][g2] + K[_GRC][g2]):
-            _point(eye, zero, p2, K[_SC][s2], b)
-            d = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-            if d < K[_SR][s1] + K[_SR][s2] - allowed:
-                return True
-    return False
-
-
-@_jit
 def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, cutoff, out):
     """Least clearance (m) of the palm's sphere groups (root-frame poses (Gp, 4, 4)) per particle (P,)."""
     c = np.empty(3)
     for p in range(rot.shape[0]):
         best = np.inf
+        r, t = rot[p], trans[p]
         for i in range(groups.shape[0]):
             g = groups[i]
-            d = _groups_clearance(values, origin, spacing, rot[p], trans[p], group_pose, i, g, g + 1, K, cutoff, c)
+            d = _groups_clearance(values, origin, spacing, r, t, group_pose, i, g, g + 1, K, cutoff, c)
             best = min(best, d)
         out[p] = best

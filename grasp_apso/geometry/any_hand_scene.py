@@ -16,7 +16,7 @@ import math
 import numba
 import numpy as np
 
-from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point, _point_xyz
+from .any_hand_kernels import _GRC, _GRCEN, _GRR, _GRS, _GS, _GC, _LC, _LR, _NL, _SC, _SR, _point_xyz
 
 __all__ = ["scene_margins", "APPROACH_FRACTIONS"]
 
@@ -63,37 +63,41 @@ def _scene_distance(c, S):
 
 @_inline
 def _groups_margin(rot, trans, pose, g0, g1, K, S, cutoff, c):
+    # The tables bound once: each read of a tuple's item in a loop costs a reference count.
+    grc, grr, grs, grn, sc, sr = K[_GRCEN], K[_GRR], K[_GRS], K[_GRC], K[_SC], K[_SR]
     best = np.inf
     for g in range(g0, g1):
-        _point_xyz(rot, trans, pose, K[_GRCEN][g, 0], K[_GRCEN][g, 1], K[_GRCEN][g, 2], c)
-        d = _scene_distance(c, S) - K[_GRR][g]
+        _point_xyz(rot, trans, pose, grc[g, 0], grc[g, 1], grc[g, 2], c)
+        d = _scene_distance(c, S) - grr[g]
         if d > cutoff:
             best = min(best, d)
             continue
-        for s in range(K[_GRS][g], K[_GRS][g] + K[_GRC][g]):
-            _point_xyz(rot, trans, pose, K[_SC][s, 0], K[_SC][s, 1], K[_SC][s, 2], c)
-            best = min(best, _scene_distance(c, S) - K[_SR][s])
+        for s in range(grs[g], grs[g] + grn[g]):
+            _point_xyz(rot, trans, pose, sc[s, 0], sc[s, 1], sc[s, 2], c)
+            best = min(best, _scene_distance(c, S) - sr[s])
     return best
 
 
 @_inline
-def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c):
-    """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4))."""
+def _hand_margin(rot, trans, poses, K, palm_bound, palm_groups, palm_pose, S, cutoff, c, eye):
+    """Least distance - radius (m) of the hand's spheres (finger links posed (F, Lmax, 4, 4));
+    ``eye`` the (4, 4) identity (the palm's bound is in the root frame)."""
     best = np.inf
-    for f in range(K[_NL].shape[0]):
-        for l in range(K[_NL][f]):
-            if K[_LR][f, l] < 0.0:
+    n_links, lr, lc, gs, gc = K[_NL], K[_LR], K[_LC], K[_GS], K[_GC]
+    for f in range(n_links.shape[0]):
+        for l in range(n_links[f]):
+            if lr[f, l] < 0.0:
                 continue
-            _point_xyz(rot, trans, poses[f, l], K[_LC][f, l, 0], K[_LC][f, l, 1], K[_LC][f, l, 2], c)
-            d = _scene_distance(c, S) - K[_LR][f, l]
+            pose = poses[f, l]
+            _point_xyz(rot, trans, pose, lc[f, l, 0], lc[f, l, 1], lc[f, l, 2], c)
+            d = _scene_distance(c, S) - lr[f, l]
             if d > cutoff:
                 best = min(best, d)
                 continue
-            g0 = K[_GS][f, l]
-            best = min(best, _groups_margin(rot, trans, poses[f, l], g0, g0 + K[_GC][f, l], K, S, cutoff, c))
+            g0 = gs[f, l]
+            best = min(best, _groups_margin(rot, trans, pose, g0, g0 + gc[f, l], K, S, cutoff, c))
     if palm_bound[3] >= 0.0:
-        eye = np.eye(4)
-        _point(rot, trans, eye, palm_bound[:3], c)
+        _point_xyz(rot, trans, eye, palm_bound[0], palm_bound[1], palm_bound[2], c)
         d = _scene_distance(c, S) - palm_bound[3]
         if d > cutoff:
             return min(best, d)
@@ -110,13 +114,15 @@ def scene_clearances(rot, trans, approach, backs, grasp_poses, open_poses, K, pa
     root, then the open pre-shape moved back by each of ``backs`` (m) along ``approach`` (P, 3)."""
     c = np.empty(3)
     t = np.empty(3)
+    eye = np.eye(4)
     for p in range(rot.shape[0]):
-        best = _hand_margin(rot[p], trans[p], grasp_poses[p], K, palm_bound, palm_groups, palm_pose, S, cutoff, c)
+        r = rot[p]
+        best = _hand_margin(r, trans[p], grasp_poses[p], K, palm_bound, palm_groups, palm_pose, S, cutoff, c, eye)
         for k in range(backs.shape[0]):
             for i in range(3):
                 t[i] = trans[p, i] - backs[k] * approach[p, i]
-            best = min(best, _hand_margin(rot[p], t, open_poses[p], K, palm_bound, palm_groups, palm_pose, S,
-                                          cutoff, c))
+            best = min(best, _hand_margin(r, t, open_poses[p], K, palm_bound, palm_groups, palm_pose, S,
+                                          cutoff, c, eye))
         out[p] = best
 
 

@@ -11,6 +11,7 @@ more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -38,23 +39,61 @@ MIN_RATE = 0.05
 MAX_BATCH = 400
 
 
+@lru_cache(maxsize=16)
+def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
+    """The pre-shape's per-joint draws of a hand, in :func:`_preshape`'s order: (spread rows,
+    their joints, their half widths; closing rows, their joints, their closing limits). Rows
+    index the draws."""
+    t = tables
+    lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
+    spread, spread_j, half, closing, closing_j, target = [], [], [], [], [], []
+    row = 0
+    for f in range(t.n_fingers):
+        for k in range(int(t.j_count[f])):
+            j = int(t.j_index[f, k])
+            if np.isnan(t.j_target[f, k]):
+                if not thumbs[f]:  # abduction near its open value: spread fingers collide
+                    spread.append(row)
+                    spread_j.append(j)
+                    half.append(SPREAD_FRACTION * (hi[j] - lo[j]))
+                    row += 1
+                continue  # the thumb's pre-shape joints: anywhere in their range
+            closing.append(row)
+            closing_j.append(j)
+            target.append(float(t.j_target[f, k]))
+            row += 1
+    ints = (lambda v: np.array(v, dtype=np.int64))
+    return (ints(spread), ints(spread_j), np.array(half, dtype=float), ints(closing), ints(closing_j),
+            np.array(target, dtype=float))
+
+
+@lru_cache(maxsize=16)
+def _owned(tables) -> np.ndarray | None:
+    """(F, n) bool: the joints each finger closes or pre-shapes; None when a joint belongs
+    to two fingers (then the fingers are regenerated one after the other)."""
+    owned = np.zeros((tables.n_fingers, tables.layout.n_joints), dtype=bool)
+    for f in range(tables.n_fingers):
+        owned[f, tables.j_index[f, :int(tables.j_count[f])]] = True
+    return None if (owned.sum(axis=0) > 1).any() else owned
+
+
 def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
-    """Pre-shapes (n, n_joints) within the limits (see the module docstring)."""
+    """Pre-shapes (n, n_joints) within the limits (see the module docstring).
+
+    Every drawn joint's n values come from one ``rng.random`` block in the order of the
+    fingers and their joints, each as ``rng.uniform`` would make it (``low + (high - low)
+    u``): the same values, bit for bit, as one ``rng.uniform`` call per joint."""
     t = model.tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
     q = rng.uniform(lo, hi, (n, len(lo)))
-    for f in range(t.n_fingers):
-        thumb = model.hand.fingers[f].is_thumb
-        for k in range(int(t.j_count[f])):
-            target = t.j_target[f, k]
-            j = int(t.j_index[f, k])
-            if np.isnan(target):
-                if not thumb:  # abduction near its open value: spread fingers collide
-                    half = SPREAD_FRACTION * (hi[j] - lo[j])
-                    q[:, j] = np.clip(t.open_q[j] + rng.uniform(-half, half, n), lo[j], hi[j])
-                continue
-            start = t.open_q[j]
-            q[:, j] = start + rng.uniform(0.0, fraction, n) * (target - start)
+    spread, spread_j, half, closing, closing_j, target = _draws(t, tuple(f.is_thumb for f in model.hand.fingers))
+    u = rng.random((len(spread) + len(closing), n))
+    if len(spread):
+        offset = (-half)[:, None] + (half - (-half))[:, None] * u[spread]
+        q[:, spread_j] = np.clip(t.open_q[spread_j][:, None] + offset, lo[spread_j][:, None], hi[spread_j][:, None]).T
+    if len(closing):
+        start = t.open_q[closing_j][:, None]
+        q[:, closing_j] = (start + (fraction * u[closing]) * (target[:, None] - start)).T
     return q
 
 
@@ -106,10 +145,16 @@ class AnyHandGenerator:
             fraction *= REGENERATE_FACTOR
             fresh = _preshape(self.model, len(rows), self.rng, fraction)
             other = _preshape(self.model, len(rows), self.rng, OPEN_FRACTION)
-            for f in range(t.n_fingers):
-                joints = 4 + t.j_index[f, :int(t.j_count[f])]
-                for sel, new in ((bad[:, f], fresh), (retry[:, f], other)):
-                    x[np.ix_(rows[sel], joints)] = new[np.ix_(sel, joints - 4)]
+            owned = _owned(t)
+            if owned is not None:  # all fingers at once (bad and retry exclude each other)
+                joints = x[rows, t.layout.joints]
+                joints = np.where((bad[:, :, None] & owned[None]).any(axis=1), fresh, joints)
+                x[rows, t.layout.joints] = np.where((retry[:, :, None] & owned[None]).any(axis=1), other, joints)
+            else:
+                for f in range(t.n_fingers):
+                    joints = 4 + t.j_index[f, :int(t.j_count[f])]
+                    for sel, new in ((bad[:, f], fresh), (retry[:, f], other)):
+                        x[np.ix_(rows[sel], joints)] = new[np.ix_(sel, joints - 4)]
             rows = rows[(bad | retry).any(axis=1)]
         return x, good, near & ~good
 

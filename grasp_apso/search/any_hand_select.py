@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import PlanningError, SimulationError
 from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
-from ..quality.robustness import robust_epsilon
+from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .archive import wrists_distinct
 from .exact_seat import seat_fingers
 from .ranking import grasp_quality, rank_order
@@ -77,6 +77,7 @@ class AnyChecked:
     squeeze: np.ndarray | None = None
     robust_epsilon: float = 0.0
     forces: np.ndarray | None = None   # (contacts,) N, the squeeze's contact forces
+    closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
 
     @property
     def balanced(self) -> bool:
@@ -95,23 +96,44 @@ def _module(name: str):
 
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     """The analytic part of the verification of one decoded grasp (no collision check):
-    epsilon and force closure, the robust epsilon, the closing imbalance and the squeeze."""
+    legality and the closing imbalance; the epsilon, force closure and robust epsilon
+    (:func:`_closure`) when the closing is balanced enough for the grasp to rank as
+    balanced (the others get them when the selection reaches them). The squeeze of a grasp
+    with closing forces is left to its verification (None until then)."""
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
-    eps, closure, robust = 0.0, False, 0.0
-    if mask.sum() >= 2:
-        eps, closure = epsilon_quality(decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
-                                       np.asarray(obj.center_of_mass, float), options.friction,
-                                       torque_scale=float(obj.characteristic_radius))
-        if closure:
-            robust = float(robust_epsilon(obj, decoded.contact_points[0][mask], decoded.contact_normals[0][mask],
-                                          mu=options.friction, edges=options.friction_edges,
-                                          torque_scale=float(obj.characteristic_radius)))
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    imbalance, squeeze, forces = _closing(model, decoded, obj)
-    return AnyChecked(decoded, float(fitness), float(eps), bool(closure), bool(legal and mask.sum() >= 2),
-                      scene_clear, math.inf, None, "", imbalance, squeeze, robust, forces)
+    imbalance, forces = _closing(model, decoded, obj)
+    squeeze = squeeze_posture(model, decoded.q[0]) if forces is None else None
+    c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
+                   None, "", imbalance, squeeze, 0.0, forces)
+    if imbalance <= MAX_IMBALANCE:
+        _closure(c, options, obj)
+    return c
+
+
+def _closure(c: AnyChecked, options, obj) -> None:
+    """The epsilon and force closure of an analysed grasp, and its robust epsilon when it
+    can rank as balanced (force closure, imbalance at most :data:`MAX_IMBALANCE`)."""
+    decoded = c.decoded
+    mask = decoded.contact[0]
+    c.closure_known = True
+    if mask.sum() < 2:
+        return
+    points, normals = decoded.contact_points[0][mask], decoded.contact_normals[0][mask]
+    eps, closure = epsilon_quality(points, normals, np.asarray(obj.center_of_mass, float), options.friction,
+                                   torque_scale=float(obj.characteristic_radius))
+    c.epsilon, c.force_closure = float(eps), bool(closure)
+    if closure and c.imbalance <= MAX_IMBALANCE:
+        uncertainty = normal_uncertainty(obj, points)
+        # Certain normals (contacts inside flat faces) leave the cones as they are: the
+        # robust epsilon is the epsilon (same cones: epsilon_quality's 8 edges), its hull
+        # need not be built again.
+        same = not uncertainty.any() and options.friction_edges == 8
+        c.robust_epsilon = c.epsilon if same else float(robust_epsilon(
+            obj, points, normals, mu=options.friction, uncertainty=uncertainty, edges=options.friction_edges,
+            torque_scale=float(obj.characteristic_radius)))
 
 
 def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> AnyChecked:
@@ -184,21 +206,19 @@ def _sim_settings():
     return settings.SimulationSettings() if settings is not None else None
 
 
-def _closing(model, decoded, obj) -> tuple[float, np.ndarray, np.ndarray | None]:
-    """The closing imbalance of one decoded grasp, its squeezed posture (n,) and the
-    contact forces (N, newtons) it exerts: the balanced forces at the pads (mean
-    ``squeeze_force``) through the servos' gain; with fewer than two contacts the uniform
-    squeeze (forces None)."""
+def _closing(model, decoded, obj) -> tuple[float, np.ndarray | None]:
+    """The closing imbalance of one decoded grasp and the contact forces (N, newtons) its
+    squeeze exerts: the balanced forces at the pads (mean ``squeeze_force``); with fewer
+    than two contacts (the uniform squeeze) imbalance 1 and forces None."""
     mask = decoded.contact[0]
-    q = decoded.q[0]
     settings = _sim_settings()
     if mask.sum() < 2 or settings is None:
-        return 1.0, squeeze_posture(model, q), None
+        return 1.0, None
     fingers = np.flatnonzero(mask)
     points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
     forces, imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
                                        float(obj.characteristic_radius), settings.squeeze_force)
-    return imbalance, _squeeze(model, decoded, obj, forces, settings), forces
+    return imbalance, forces
 
 
 def _squeeze(model, decoded, obj, forces, settings, report=None) -> np.ndarray:
@@ -225,7 +245,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
 
     The pool is the swarm's best, the leaders' archive and the particles' personal bests.
     Up to :data:`ANALYSED` times ``max_grasps`` of them with two or more contacts, in
-    descending fitness, are analysed (:func:`_analyse`); then verified with python-fcl in
+    descending fitness, are analysed (:func:`_analyse`, only those that can still be
+    verified); then verified with python-fcl in
     the order balanced first, fitness within (stable), distinct wrists only, until
     ``max_grasps`` (with ``simulate``: :data:`SPARE` times that) are kept. Without a
     scene at least the best one even when not valid."""
@@ -243,32 +264,66 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
-    analysed = [_analyse(model, decoded.take(np.array([i])), fitness[i], options, obj)
-                for i in [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]]
-    if not analysed:  # nothing with two contacts: the fittest, to report why
-        analysed = [_analyse(model, decoded.take(order[:1]), fitness[order[0]], options, obj)]
-    # stable: balanced, then other force closure, then the rest, by fitness within each
-    analysed.sort(key=lambda c: (not c.balanced, not c.force_closure))
+    eligible = [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]
+    if not eligible:  # nothing with two contacts: the fittest, to report why
+        eligible = [int(order[0])]
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
     rejected = 0
     wanted = (SPARE if options.simulate else 1) * options.max_grasps
-    for c in analysed:
-        if len(kept) >= wanted:
-            break
-        one = c.decoded
-        if kept and not all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3],
-                                            one.wrist[:, :3, :3], one.wrist[:, :3, 3], options.min_orientation_gap,
-                                            options.min_position_gap)[0] for k in kept):
-            continue
+
+    def distinct(one) -> bool:
+        return all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3], one.wrist[:, :3, :3],
+                                   one.wrist[:, :3, 3], options.min_orientation_gap, options.min_position_gap)[0]
+                   for k in kept)
+
+    def verify(c: AnyChecked) -> None:
+        nonlocal first, rejected
         checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
+        if checked.squeeze is None:  # not squeezed by the verification (no python-fcl)
+            checked.squeeze = _squeeze(model, checked.decoded, obj, checked.forces, _sim_settings())
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
         else:
             rejected += 1
+
+    # Verified in the order balanced, then other force closure, then the rest, by fitness
+    # within each (stable), distinct wrists only. Lazily, with the same outcome: the
+    # balanced ones are verified as the fitness order reaches them, the others after; a
+    # grasp not distinct from the grasps kept when the fitness order reaches it is never
+    # verified (the kept ones only grow), so it is not analysed either.
+    later: list[AnyChecked] = []
+    for i in eligible:
+        if len(kept) >= wanted:
+            break
+        one = decoded.take(np.array([i]))
+        if not distinct(one):
+            continue
+        c = _analyse(model, one, fitness[i], options, obj)
+        if c.balanced:
+            verify(c)
+        else:
+            later.append(c)
+    rest: list[AnyChecked] = []
+    for c in later:  # force closure first (known now, for the grasps still distinct), then the rest
+        if len(kept) >= wanted:
+            break
+        if not distinct(c.decoded):
+            continue
+        if not c.closure_known:
+            _closure(c, options, obj)
+        if c.force_closure:
+            verify(c)
+        else:
+            rest.append(c)
+    for c in rest:
+        if len(kept) >= wanted:
+            break
+        if distinct(c.decoded):
+            verify(c)
     if not kept:
         if scene is not None or first is None:
             raise PlanningError(
