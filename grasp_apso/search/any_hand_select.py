@@ -30,6 +30,7 @@ from ..errors import PlanningError, SimulationError
 from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import robust_epsilon
+from .any_hand_pads import final_decodings, pads_on
 from .archive import wrists_distinct
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -215,7 +216,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     x = np.stack(pool)
     _, first_rows = np.unique(x, axis=0, return_index=True)
     x = x[np.sort(first_rows)]  # the archive's leaders are often personal bests too
-    decoded = problem.decode(x)
+    decoded = final_decodings(model, problem, x)  # as searched, and with the pads on the surface
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
@@ -223,8 +224,9 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
                 for i in [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]]
     if not analysed:  # nothing with two contacts: the fittest, to report why
         analysed = [_analyse(model, decoded.take(order[:1]), fitness[order[0]], options, obj)]
-    # stable: balanced, then other force closure, then the rest, by fitness within each
-    analysed.sort(key=lambda c: (not c.balanced, not c.force_closure))
+    # stable: balanced, then other force closure, then the rest, the pads on the surface
+    # first within each, by fitness within those
+    analysed.sort(key=lambda c: (not c.balanced, not c.force_closure, not pads_on(c.decoded)))
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
