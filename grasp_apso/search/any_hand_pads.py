@@ -32,6 +32,8 @@ FRACTIONS = (1.0, 0.5, 0.25)
 #: Other pre-shapes tried per round: half near the particle's, half drawn as GRG's.
 SAMPLES = 8
 LOCAL_SPREAD = 0.1
+#: The final selection aligns this many of the fittest grasps per grasp wanted.
+ALIGNED_PER_GRASP = 5
 #: Finite-difference step of the Jacobian (rad or m).
 H = 1e-4
 #: A step whose closing hardly moves the pad into the surface (m per unit of s) is skipped.
@@ -156,9 +158,9 @@ def _samples(model: AnyHandModel, x: np.ndarray, k: int, rng: np.random.Generato
 
 def align_pads(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
                wrist_position: np.ndarray | None = None, rounds: int = ALIGN_ROUNDS,
-               samples: int = SAMPLES) -> tuple[np.ndarray, AnyDecoded]:
+               samples: int = SAMPLES, decoded: AnyDecoded | None = None) -> tuple[np.ndarray, AnyDecoded]:
     """Particles x (P, D) with the pre-shapes of their pad contacts turned toward the
-    surface (see the module docstring), and their decoding.
+    surface (see the module docstring), and their decoding (``decoded``: x's, when known).
 
     Each round tries, for every finger whose pad point is off the surface, the Gauss-Newton
     step (:func:`pad_step`, fractions :data:`FRACTIONS`) and ``samples`` other pre-shapes
@@ -170,7 +172,7 @@ def align_pads(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
     t, s = model.tables, model.settings
     lay = t.layout
     x = np.clip(np.asarray(x, dtype=float), t.lower, t.upper)
-    d = decode_any(model, x, wrist_position)
+    d = decode_any(model, x, wrist_position) if decoded is None else decoded
     index, _, _ = _own_joints(model)
     owned = [lay.joints.start + index[f][index[f] >= 0] for f in range(t.n_fingers)]
     for _ in range(rounds):
@@ -193,30 +195,35 @@ def align_pads(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
         better = np.isfinite(gain)
         if not better.any():
             break
-        # Variant 0: every improved finger's; variant 1 + f: finger f's alone.
-        variants = np.repeat(x[rows][None], 1 + t.n_fingers, axis=0)
+        # Every improved finger's variant together; where that is worse for the particle
+        # (fingers now overlapping), the finger's that gains most alone.
+        joint, single = x[rows].copy(), x[rows].copy()
+        top = np.argmax(np.where(better, gain, -np.inf), axis=1)
         for f in range(t.n_fingers):
             sel = np.flatnonzero(better[:, f])
-            picked = trial[best[sel, f], sel][:, owned[f]]
-            variants[0][np.ix_(sel, owned[f])] = picked
-            variants[1 + f][np.ix_(sel, owned[f])] = picked
-        dv = decode_any(model, variants.reshape(-1, lay.dims), wrist_position)
-        old_legal = np.tile(sub.legal(s.max_penetration), 1 + t.n_fingers)
-        total = np.where(dv.contact, dv.pad_offset, 0.0).sum(axis=1)
-        keep = ((dv.n_contacts >= np.tile(sub.n_contacts, 1 + t.n_fingers))
-                & (dv.legal(s.max_penetration) | ~old_legal)
-                & (total < np.tile(np.where(sub.contact, sub.pad_offset, 0.0).sum(axis=1), 1 + t.n_fingers) - 1e-4))
-        keep = keep.reshape(1 + t.n_fingers, m)
-        keep[1:] &= better.T
-        # The joint variant when kept, else the single finger that gains most.
-        choice = np.where(keep[0], 0, 1 + np.argmax(np.where(keep[1:], gain.T, -np.inf), axis=0))
-        chosen = keep[choice, np.arange(m)]
-        if not chosen.any():
-            break
-        pick = choice[chosen] * m + np.flatnonzero(chosen)
-        x[rows[chosen]] = variants.reshape(-1, lay.dims)[pick]
-        d = _replace_rows(d, rows[chosen], dv.take(pick))
+            joint[np.ix_(sel, owned[f])] = trial[best[sel, f], sel][:, owned[f]]
+            one = sel[top[sel] == f]
+            single[np.ix_(one, owned[f])] = joint[np.ix_(one, owned[f])]
+        changed = better.any(axis=1)
+        for variant in (joint, single):
+            if not changed.any():
+                break
+            at = np.flatnonzero(changed)
+            dv = decode_any(model, variant[at], wrist_position)
+            ok = _no_worse(dv, sub.take(at), s.max_penetration)
+            x[rows[at[ok]]] = variant[at[ok]]
+            d = _replace_rows(d, rows[at[ok]], dv.take(np.flatnonzero(ok)))
+            changed[at[ok]] = False
     return x, d
+
+
+def _no_worse(new: AnyDecoded, old: AnyDecoded, max_penetration: float) -> np.ndarray:
+    """(P,) bool: ``new`` keeps as many contacts, is legal where ``old`` was, and its
+    contacts' pad points are nearer the surface in sum."""
+    near = np.where(new.contact, new.pad_offset, 0.0).sum(axis=1)
+    before = np.where(old.contact, old.pad_offset, 0.0).sum(axis=1)
+    return ((new.n_contacts >= old.n_contacts) & (new.legal(max_penetration) | ~old.legal(max_penetration))
+            & (near < before - 1e-4))
 
 
 def _replace_rows(d: AnyDecoded, rows: np.ndarray, new: AnyDecoded) -> AnyDecoded:
@@ -242,28 +249,38 @@ def _concat(a: AnyDecoded, b: AnyDecoded) -> AnyDecoded:
 
 def align_closable(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
                    wrist_position: np.ndarray | None = None, rounds: int = ALIGN_ROUNDS,
-                   samples: int = SAMPLES) -> tuple[np.ndarray, AnyDecoded]:
+                   samples: int = SAMPLES, limit: int | None = None,
+                   priority: np.ndarray | None = None,
+                   decoded: AnyDecoded | None = None) -> tuple[np.ndarray, AnyDecoded]:
     """:func:`align_pads` of the particles x (P, D) whose grasps can be force closure
-    (legal but for the scene, three contacts or more); the others as they are. Returns the
-    particles and their decoding."""
+    (legal but for the scene, three contacts or more), at most ``limit`` of them, the
+    highest ``priority`` (P,) first; the others as they are. Returns the particles and
+    their decoding (``decoded``: x's, when known)."""
     s = model.settings
-    x = np.array(x, dtype=float)
-    d = decode_any(model, x, wrist_position)
+    x = np.clip(np.asarray(x, dtype=float), model.lower, model.upper)
+    d = decode_any(model, x, wrist_position) if decoded is None else decoded
     legal = ~d.finger_illegal(s.max_penetration).any(axis=1) & (d.palm_clearance >= -s.max_penetration)
     rows = np.flatnonzero(legal & (d.n_contacts >= 3))
+    if limit is not None and len(rows) > limit:
+        rank = np.zeros(len(rows)) if priority is None else -np.asarray(priority, float)[rows]
+        rows = np.sort(rows[np.argsort(rank, kind="stable")[:limit]])
     if len(rows):
-        x[rows], aligned = align_pads(model, x[rows], rng, wrist_position, rounds, samples)
+        x[rows], aligned = align_pads(model, x[rows], rng, wrist_position, rounds, samples, d.take(rows))
         d = _replace_rows(d, rows, aligned)
     return x, d
 
 
-def final_decodings(model: AnyHandModel, problem, x: np.ndarray) -> AnyDecoded:
-    """The final selection's decodings of the pool x (P, D): each particle with its pads
-    turned to the surface (:func:`align_pads`), decoded as the search does, then again
-    with only the contacts whose pad points lie on the surface (``pads_on``) where that
-    leaves another grasp with two or more contacts."""
+def final_decodings(model: AnyHandModel, problem, x: np.ndarray, wanted: int) -> AnyDecoded:
+    """The final selection's decodings of the pool x (P, D): the fittest
+    ``ALIGNED_PER_GRASP * wanted`` with their pads turned to the surface
+    (:func:`align_closable`), every particle decoded as the search does, then again with
+    only the contacts whose pad points lie on the surface (``pads_on``) where that leaves
+    another grasp with two or more contacts."""
     wrist = problem.wrist_position
-    x, d = align_closable(model, x, problem.generator.rng, wrist)
+    d = decode_any(model, x, wrist)
+    fitness, _ = problem.fitness(d)
+    x, d = align_closable(model, x, problem.generator.rng, wrist, limit=ALIGNED_PER_GRASP * wanted,
+                          priority=fitness, decoded=d)
     strict = decode_any(model, x, wrist, pads_on=True)
     other = np.flatnonzero((strict.n_contacts >= 2) & (strict.contact != d.contact).any(axis=1))
     return _concat(d, strict.take(other)) if len(other) else d

@@ -216,7 +216,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     x = np.stack(pool)
     _, first_rows = np.unique(x, axis=0, return_index=True)
     x = x[np.sort(first_rows)]  # the archive's leaders are often personal bests too
-    decoded = final_decodings(model, problem, x)  # as searched, and with the pads on the surface
+    decoded = final_decodings(model, problem, x, options.max_grasps)  # as searched, and pads on the surface
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
