@@ -11,7 +11,9 @@ pad point ``Finger.pad_center``: :func:`.any_hand_tables.pad_sphere_center`) is 
 the contact tolerance of the object's surface with its pad side (within :data:`PAD_CONE`
 of the pad point), either side (the contact point: the
 sphere's centre projected on the surface along the gradient; the normal: the outward
-gradient); a finger without contact goes back to its pre-shape.
+gradient); a finger without contact goes back to its pre-shape. Each pad point's distance
+to the surface is reported (``pad_offset``); with ``pads_on`` a contact also needs it within
+:data:`PAD_ON` (the final selection's strict reading, :mod:`grasp_apso.search.any_hand_pads`).
 Illegal: a finger penetrating at its pre-shape (blocked), a link deeper than
 ``max_penetration``, a non-pad link touching (precision grasps), spheres of different
 fingers overlapping, the palm (root and non-finger links) penetrating, and with a scene a

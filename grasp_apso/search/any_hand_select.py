@@ -1,7 +1,9 @@
 """Final verification, ranking and the result of a general hand's plan.
 
 The candidates are the swarm's best and the leaders' archive (distinct wrists), decoded
-again and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
+again (the fittest with their pads turned to the surface, and strictly with only the
+contacts whose pad points lie on it: :func:`grasp_apso.search.any_hand_pads.final_decodings`)
+and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
 of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
