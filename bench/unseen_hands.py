@@ -29,7 +29,8 @@ link at the candidate's ``wrist_pose``:
     centred along the inward normal of the URDF's own fingertip mesh there, within 2 mm of
     the object's surface (trimesh) with its pad side (the half facing the pad normal);
     also reported, not a check: ``pad_pts``, candidates whose pad points themselves lie
-    within 2 mm, and ``fc``, force-closure candidates;
+    within 2 mm (and the share of contacts whose pad points do), and ``fc``, force-closure
+    candidates;
 (d) ``depth``: no link penetrates the object by more than 1 mm (python-fcl collide, the
     depth then measured from surface samples with trimesh's signed distance both ways).
 
@@ -307,12 +308,16 @@ def report(rows: list[dict]) -> dict:
         group = [r for r in rows if r["hand"] == hand]
         cands = [c for r in group for c in r["candidates"]]
         times = [r["plan_s"] for r in group if "plan_s" in r]
+        points = [d for x in cands for d in x["pad_points_mm"]]
         s = {"plans": len(group), "with_grasp": sum(bool(r["candidates"]) for r in group),
              "candidates": len(cands), **{c: sum(x[c] for x in cands) for c in CHECKS + INFO},
-             "median_plan_s": statistics.median(times) if times else math.nan}
+             "median_plan_s": statistics.median(times) if times else math.nan,
+             "contacts": len(points), "contact_pad_pts": sum(d <= 1000 * PAD_TOL for d in points)}
         summary[hand] = s
         print(f"{hand:26s} {s['with_grasp']:5d}/{s['plans']:<6d} {s['candidates']:6d} "
               + " ".join(f"{s[c]:7d}" for c in CHECKS + INFO) + f" {s['median_plan_s']:9.1f}")
+    print("\nContacts whose pad points lie within 2 mm: " + ", ".join(
+        f"{h} {s['contact_pad_pts']}/{s['contacts']}" for h, s in summary.items()))
     print("\nFailing candidates:")
     for r in rows:
         for c in r["candidates"]:

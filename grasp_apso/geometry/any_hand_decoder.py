@@ -11,7 +11,9 @@ pad point ``Finger.pad_center``: :func:`.any_hand_tables.pad_sphere_center`) is 
 the contact tolerance of the object's surface with its pad side (within :data:`PAD_CONE`
 of the pad point), either side (the contact point: the
 sphere's centre projected on the surface along the gradient; the normal: the outward
-gradient); a finger without contact goes back to its pre-shape.
+gradient); a finger without contact goes back to its pre-shape. Each pad point's distance
+to the surface is reported (``pad_offset``); with ``pads_on`` a contact also needs it within
+:data:`PAD_ON` (the final selection's strict reading, :mod:`grasp_apso.search.any_hand_pads`).
 Illegal: a finger penetrating at its pre-shape (blocked), a link deeper than
 ``max_penetration``, a non-pad link touching (precision grasps), spheres of different
 fingers overlapping, the palm (root and non-finger links) penetrating, and with a scene a
@@ -59,6 +61,9 @@ GRID_MARGIN = 0.0005
 #: grasps.)
 PAD_CONE = float(np.radians(90.0))
 _COS_CONE = float(np.cos(PAD_CONE)) + 1e-9
+#: A pad point this near the surface (m) is on it: the judged 2 mm less the grid's error
+#: (GRID_MARGIN) and as much again for the trimesh reading of the exact surface.
+PAD_ON = 0.0015
 
 
 @dataclass(frozen=True)
@@ -160,6 +165,13 @@ class AnyDecoded:
     penetration, blocked, link_contact, finger_collision : (P, F)
         (``finger_collision`` checked only for particles otherwise legal with two contacts)
     palm_clearance : (P,) float, m
+    pad_offset : (P, F) float, m
+        Each pad point's (``Finger.pad_center``) distance to the object's surface at the
+        grasp: 0 when the pad itself touches, up to ``pad_radius`` when the pad sphere
+        touches with its side.
+    closing : (P, F) float
+        The closing parameter ``s`` where each finger stopped (0 at the pre-shape, 1 at the
+        closing limits; each closing joint moves ``q0 + s (limit - q0)``).
     scene_margin : (P,) float or None, m
         Least distance of the hand to the scene minus the clearance (grasp and approach);
         checked only for the particles otherwise legal with two contacts (0 for the others).
@@ -180,6 +192,8 @@ class AnyDecoded:
     link_contact: np.ndarray
     finger_collision: np.ndarray
     palm_clearance: np.ndarray
+    pad_offset: np.ndarray
+    closing: np.ndarray
     scene_margin: np.ndarray | None = None
 
     @property
@@ -233,8 +247,11 @@ def _pad_facing(model: AnyHandModel, points: np.ndarray, centers: np.ndarray) ->
     return -(pad_normal * gradient).sum(axis=2)
 
 
-def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> AnyDecoded:
-    """Decode particles x (P, D) (clamped to the bounds) into grasps; see the module docstring."""
+def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None,
+               pads_on: bool = False) -> AnyDecoded:
+    """Decode particles x (P, D) (clamped to the bounds) into grasps; see the module docstring.
+    ``pads_on``: a contact also needs its pad point within :data:`PAD_ON` of the surface (the
+    final selection's strict reading; the search's contacts are the pad spheres')."""
     lay, t, s = model.layout, model.tables, model.settings
     x = np.asarray(x, dtype=float)
     if x.ndim != 2 or x.shape[1] != lay.dims:
@@ -259,10 +276,14 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     # The pad sphere may touch the object with the fingertip's side or tip, away from the
     # pad: a contact is made with the pad, so the pad sphere must touch within PAD_CONE of
     # the pad point's direction; the rest of the way guides the swarm toward it.
-    facing = _pad_facing(model, _pad_points(model, rot, trans, q), pad_pos)
+    pads = _pad_points(model, rot, trans, q)
+    facing = _pad_facing(model, pads, pad_pos)
     off = np.maximum(0.0, _COS_CONE - facing) * t.pad_radius[None, :]
+    pad_offset = np.abs(model.sdf.distance(pads.reshape(-1, 3))).reshape(n_p, n_f)
     tip_gap = pad_gap + off
     contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN) & (facing >= _COS_CONE)
+    if pads_on:
+        contact &= pad_offset <= PAD_ON
     # Fingers without a pad contact take no part in the precision grasp: back to the pre-shape.
     reset = ~contact
     if reset.any():
@@ -274,6 +295,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
         rows = np.argwhere(reset).astype(np.int64)
         link_clear[rows[:, 0], rows[:, 1]] = np.inf
         hk.finger_clearances(*grid, rot, trans, q, rows, model.kin, CUTOFF, link_clear, pad_pos, pad_gap)
+        s_out[reset] = 0.0
     penetration = np.maximum(0.0, -link_clear.min(axis=2))
     non_pad = link_clear.copy()
     non_pad[:, t.pad_body.astype(bool)] = np.inf  # the pad link and links fixed to it: one body
@@ -315,4 +337,4 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     return AnyDecoded(closed=closed, q_pre=q0, q=q, root=root, wrist=wrist, contact=contact,
                       contact_points=points, contact_normals=normals, tip_gap=tip_gap, pad_points=pad_pos,
                       penetration=penetration, blocked=blocked, link_contact=link_contact, finger_collision=collide,
-                      palm_clearance=palm, scene_margin=margin)
+                      palm_clearance=palm, pad_offset=pad_offset, closing=s_out, scene_margin=margin)

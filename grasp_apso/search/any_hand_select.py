@@ -1,7 +1,9 @@
 """Final verification, ranking and the result of a general hand's plan.
 
 The candidates are the swarm's best and the leaders' archive (distinct wrists), decoded
-again and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
+again (the fittest with their pads turned to the surface, and strictly with only the
+contacts whose pad points lie on it: :func:`grasp_apso.search.any_hand_pads.final_decodings`)
+and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
 of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
@@ -30,6 +32,7 @@ from ..errors import PlanningError, SimulationError
 from ..quality.closing import closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import normal_uncertainty, robust_epsilon
+from .any_hand_pads import final_decodings, pads_on
 from .archive import wrists_distinct
 from .exact_seat import seat_fingers
 from .ranking import grasp_quality, rank_order
@@ -262,13 +265,16 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     x = np.stack(pool)
     _, first_rows = np.unique(x, axis=0, return_index=True)
     x = x[np.sort(first_rows)]  # the archive's leaders are often personal bests too
-    decoded = problem.decode(x)
+    decoded = final_decodings(model, problem, x, options.max_grasps)  # as searched, and pads on the surface
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
     eligible = [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]
     if not eligible:  # nothing with two contacts: the fittest, to report why
         eligible = [int(order[0])]
+    # the grasps whose pads lie on the surface first (stable: by fitness within), so that
+    # within each class below they are verified first
+    eligible.sort(key=lambda i: not pads_on(decoded.take(np.array([i]))))
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
