@@ -23,6 +23,9 @@ SEAT_DEPTH = 0.0005
 SEAT_TRAVEL = 0.25
 #: Bisection steps per finger (the opening found to SEAT_TRAVEL / 2**SEAT_STEPS).
 SEAT_STEPS = 6
+#: m: a seated pad's sphere stays this much inside the contact tolerance of the surface
+#: (an exact-distance check of it may differ by a few tenths of a millimetre).
+PAD_MARGIN = 0.00025
 
 
 def _finger_depth(report, rows: np.ndarray) -> float:
@@ -48,14 +51,16 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
     report : AnyHandReport
         ``fcl_api.object_report`` of ``q``.
     pad_tolerance : float, m
-        A seated finger's pad link must stay within this of the surface (still a contact).
+        A seated finger's pad sphere that touched must stay within this (less
+        :data:`PAD_MARGIN`) of the surface: still a contact at the pad.
 
     Returns
     -------
     (q, report)
         The seated posture and its report, or the given ones unchanged when no finger
         presses in, the palm does (a finger cannot fix it), or a finger would have to
-        open further than :data:`SEAT_TRAVEL` or lose its contact.
+        open further than :data:`SEAT_TRAVEL` or lose its pad contact (the link then
+        touched the object away from its pad).
     """
     tol = float(report.tolerance)
     fingers = hc.shapes.finger
@@ -88,10 +93,24 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
     seated_report = fcl_api.object_report(hc, seated, root, obj)
     if not seated_report.legal:
         return q, report
-    for f in moved:  # a pad that touched still touches
-        pad = hand.fingers[int(f)].pad_link
-        if pad in hc.links:
-            row = hc.links.index(pad)
-            if report.link_distance[row] <= pad_tolerance < seated_report.link_distance[row]:
-                return q, report
+    before, after = _pad_gaps(hand, q, root, obj, moved), _pad_gaps(hand, seated, root, obj, moved)
+    if np.any((before <= pad_tolerance) & (after > pad_tolerance - PAD_MARGIN)):
+        return q, report  # a pad that touched would no longer: the contact was not the pad's
     return seated, seated_report
+
+
+def _pad_gaps(hand, q: np.ndarray, root: np.ndarray, obj, fingers: np.ndarray) -> np.ndarray:
+    """Gap (m) between each finger's pad sphere (:func:`.any_hand_tables.pad_sphere_center`)
+    and the object's surface (trimesh, exact; negative inside), at posture q (n,) and the
+    root pose ``root`` (object frame)."""
+    from ..geometry.any_hand_tables import pad_sphere_center
+    import trimesh
+
+    poses = hand.link_transforms(q)
+    centres = np.array([(root @ poses[hand.fingers[int(f)].pad_link]
+                         @ np.append(pad_sphere_center(hand, hand.fingers[int(f)]), 1.0))[:3] for f in fingers])
+    mesh = obj.mesh
+    _, distance, _ = trimesh.proximity.closest_point(mesh, centres)
+    inside = mesh.contains(centres)
+    radius = np.array([hand.fingers[int(f)].pad_radius for f in fingers])
+    return np.where(inside, -distance, distance) - radius
