@@ -11,7 +11,6 @@ more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -39,7 +38,6 @@ MIN_RATE = 0.05
 MAX_BATCH = 400
 
 
-@lru_cache(maxsize=16)
 def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     """The pre-shape's per-joint draws of a hand, in :func:`_preshape`'s order: (spread rows,
     their joints, their half widths; closing rows, their joints, their closing limits). Rows
@@ -67,7 +65,6 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
             np.array(target, dtype=float))
 
 
-@lru_cache(maxsize=16)
 def _owned(tables) -> np.ndarray | None:
     """(F, n) bool: the joints each finger closes or pre-shapes; None when a joint belongs
     to two fingers (then the fingers are regenerated one after the other)."""
