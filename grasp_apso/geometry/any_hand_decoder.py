@@ -30,8 +30,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from . import any_hand_kernels as hk
-from .any_hand_approach import object_approach_margins
 from . import kernels
+from .any_hand_approach import object_approach_margins
 from .any_hand_scene import packed_scene, scene_margins
 from .any_hand_tables import HandTables, hand_tables
 from .contact_settings import ContactSettings

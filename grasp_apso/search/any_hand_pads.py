@@ -302,6 +302,6 @@ def final_decodings(model: AnyHandModel, problem, x: np.ndarray, wanted: int) ->
     return _concat(d, strict.take(other)) if len(other) else d
 
 
-def pads_on(decoded: AnyDecoded) -> bool:
-    """Every contact's pad point of the (first) decoded grasp lies on the surface."""
-    return bool(np.all(decoded.pad_offset[0][decoded.contact[0]] <= PAD_ON))
+def pads_on(decoded: AnyDecoded) -> np.ndarray:
+    """(P,) bool: every contact's pad point of each decoded grasp lies on the surface."""
+    return np.all((decoded.pad_offset <= PAD_ON) | ~decoded.contact, axis=1)

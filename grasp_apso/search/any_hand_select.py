@@ -274,7 +274,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
         eligible = [int(order[0])]
     # the grasps whose pads lie on the surface first (stable: by fitness within), so that
     # within each class below they are verified first
-    eligible.sort(key=lambda i: not pads_on(decoded.take(np.array([i]))))
+    on = pads_on(decoded)
+    eligible.sort(key=lambda i: not on[i])
     fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
@@ -298,8 +299,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
         else:
             rejected += 1
 
-    # Verified in the order balanced, then other force closure, then the rest, by fitness
-    # within each (stable), distinct wrists only. Lazily, with the same outcome: the
+    # Verified in the order balanced, robust force closure, other force closure, the rest,
+    # by fitness within each (stable), distinct wrists only. Lazily, with the same outcome: the
     # balanced ones are verified as the fitness order reaches them, the others after; a
     # grasp not distinct from the grasps kept when the fitness order reaches it is never
     # verified (the kept ones only grow), so it is not analysed either.

@@ -110,15 +110,17 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
 
 
 def _pad_gaps(hand, q: np.ndarray, root: np.ndarray, obj, fingers: np.ndarray) -> np.ndarray:
-    """Gap (m) between each finger's pad sphere (:func:`.any_hand_tables.pad_sphere_center`)
-    and the object's surface (trimesh, exact; negative inside), at posture q (n,) and the
-    root pose ``root`` (object frame)."""
-    from ..geometry.any_hand_tables import pad_sphere_center
+    """Gap (m) between each finger's pad sphere (centre in the hand's tables,
+    :func:`.any_hand_tables.pad_sphere_center`) and the object's surface (trimesh, exact;
+    negative inside), at posture q (n,) and the root pose ``root`` (object frame)."""
     import trimesh
 
+    from ..geometry.any_hand_tables import hand_tables
+
+    centre_local = hand_tables(hand).pad_center  # (F, 3), cached per hand
     poses = hand.link_transforms(q)
-    centres = np.array([(root @ poses[hand.fingers[int(f)].pad_link]
-                         @ np.append(pad_sphere_center(hand, hand.fingers[int(f)]), 1.0))[:3] for f in fingers])
+    centres = np.array([(root @ poses[hand.fingers[int(f)].pad_link] @ np.append(centre_local[int(f)], 1.0))[:3]
+                        for f in fingers])
     mesh = obj.mesh
     _, distance, _ = trimesh.proximity.closest_point(mesh, centres)
     inside = mesh.contains(centres)
