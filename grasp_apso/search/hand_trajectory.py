@@ -34,8 +34,6 @@ from .motion_times import CLOSE_TIME, SQUEEZE_TIME
 __all__ = ["CLOSE_TIME", "SQUEEZE_TIME", "hand_trajectory", "squeeze_positions"]
 
 
-
-
 def _is_paper_hand(hand: Any) -> bool:
     from ..model.hand import HandModel as PaperHand
 
