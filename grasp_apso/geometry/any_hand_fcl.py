@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..model.hands.model import HandModel
 from ..model.scene import Scene
 from .any_hand_queries import object_distances, obstacle_distances, part_pair_distances, plane_distances
-from .any_hand_shapes import EXACT_WITHIN, HandShapes, hand_shapes, object_shape
+from .any_hand_shapes import DECIDE_WITHIN, EXACT_WITHIN, HandShapes, hand_shapes, object_shape
 # The scene's fcl objects, the pose/number validation and the approach tolerances are the paper hand's (one source of truth).
 from .hand_fcl import CONTACT_ZONE, OBJECT_TOLERANCE, _approach_steps, _nonnegative, _pose, _scene_geometry
 
@@ -328,7 +328,7 @@ def _unit(vector, field: str) -> np.ndarray:
 
 def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose: np.ndarray, approach: np.ndarray,
                     distance: float, scene: Scene, obj=None, obj_pose: np.ndarray | None = None,
-                    step: float = 0.005, clearance: float = 0.0) -> AnyApproachReport:
+                    step: float = 0.005, clearance: float = 0.0, decide_only: bool = False) -> AnyApproachReport:
     """The open hand (``q_pre``) moved in a straight line from the pre-grasp (``root_pose``
     retreated ``distance`` along minus ``approach``) to ``root_pose``, checked at
     ``ceil(distance / step) + 1`` equal steps (each at most ``step``).
@@ -349,6 +349,13 @@ def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose:
         The object frame in the scene frame (None: the identity).
     step : float, m, > 0
     clearance : float, m, >= 0
+    decide_only : bool
+        Measure only what decides ``clear``: the object's distances of parts that cannot
+        touch it are left at lower bounds (their convex hulls' gap), and the check stops
+        at the first step where the hand hits the object (``min_object_distance`` is then
+        a lower bound over the steps visited, ``hit_at`` that step). ``clear`` is the same
+        either way; the selection of the pre-grasp uses it (a refused posture's mesh
+        queries are most of a plan's approach checks).
 
     Raises
     ------
@@ -384,7 +391,7 @@ def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose:
         obj_parts = none
         if shape is not None:
             bound = last_obj - np.abs(s - at_obj)
-            obj_parts = np.flatnonzero((bound <= 0.0) | (bound < min_obj))
+            obj_parts = np.flatnonzero((bound <= 0.0) | ((bound < min_obj) & (not decide_only)))
         if not (len(obs_parts) or len(obj_parts)):
             continue
         poses = start.copy()
@@ -395,13 +402,16 @@ def approach_report(hc: HandCollision | HandModel, q_pre: np.ndarray, root_pose:
             last_obs[obs_parts], at_obs[obs_parts] = d, s
             min_scene = min(min_scene, float(d.min()))
         if len(obj_parts):
-            d = object_distances(hc.shapes, objs, poses, obj_parts, shape, opose)
+            d = object_distances(hc.shapes, objs, poses, obj_parts, shape, opose,
+                                 DECIDE_WITHIN if decide_only else EXACT_WITHIN)
             last_obj[obj_parts], at_obj[obj_parts] = d, s
             min_obj = min(min_obj, float(d.min()))
             bad = d < -OBJECT_TOLERANCE if s <= CONTACT_ZONE + 1e-12 else d <= 0.0
             if bad.any() and s > hit_at:
                 hit_at = s
                 hit_link = hc.links[hc.shapes.part_link[obj_parts[np.argmin(np.where(bad, d, np.inf))]]]
+                if decide_only:
+                    break
     hits = hit_at > -math.inf
     return AnyApproachReport(clear=bool(min_scene >= clear_min and not hits), min_scene_distance=float(min_scene),
                              min_object_distance=float(min_obj), hits_object=bool(hits), hit_link=hit_link,

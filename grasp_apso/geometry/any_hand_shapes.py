@@ -45,7 +45,7 @@ from ..model.hands.mesh_distance import MeshDistance
 from ..model.hands.model import HandModel
 from .collision import BVH_BYTES_PER_TRIANGLE, mesh_bvh, object_bvh
 
-__all__ = ["HandShapes", "ObjectShape", "hand_shapes", "object_shape", "SAMPLE_SPACING", "MAX_SAMPLES",
+__all__ = ["HandShapes", "ObjectShape", "hand_shapes", "object_shape", "DECIDE_WITHIN", "SAMPLE_SPACING", "MAX_SAMPLES",
            "TOUCH_EPS", "EXACT_WITHIN", "fcl_geometry", "local_samples"]
 
 #: Largest gap (m) between the surface samples of a box, cylinder or mesh part.
@@ -56,6 +56,9 @@ MAX_SAMPLES = 3000
 TOUCH_EPS = 1e-9
 #: GJK distances to an object's hull under this (m) are measured again exactly (BVH).
 EXACT_WITHIN = 0.01
+#: ... or under this (m) where only touching decides (the approach check's ``decide_only``):
+#: a hull gap above it is a lower bound that already says "apart".
+DECIDE_WITHIN = 1e-6
 _PRIMITIVES = ("box", "sphere", "cylinder", "capsule")
 
 

@@ -168,7 +168,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
             # the contacts (DexGraspBench's pregrasp); a pre-shape whose fingers sweep through
             # the object on the way in is opened wider (the pre-shape joints kept).
             reports.append(fcl_api.approach_report(hc, posture, root_plan, approach, options.approach_distance,
-                                                   scene, obj, pose))
+                                                   scene, obj, pose, decide_only=True))
             if not reports[-1].hits_object and reports[-1].min_scene_distance >= options.clearance:
                 decoded.q_pre[0] = posture
                 clear = True
