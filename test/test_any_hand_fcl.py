@@ -255,6 +255,37 @@ def test_the_approach_finds_the_object_in_the_path_but_not_at_the_grasp(hands):
     assert report.hit_link in hc.links
 
 
+@pytest.mark.parametrize("name", ["allegro_meshes", "shadow"])
+def test_the_deciding_approach_check_agrees_with_the_full_one(hands, name):
+    """``decide_only`` (the selection's pre-grasp choice) leaves distances at hull lower
+    bounds and stops at the first hit: ``clear`` must agree with the full check; when
+    clear its object distance must not exceed the full one; a hit must lie within the
+    full one's stretch. A non-convex object (a torus) at seeded poses about the hand's front, some
+    clear, some in the way."""
+    hand = hands[name]
+    hc = HandCollision(hand)
+    rng = np.random.default_rng(5)
+    approach = hand.palm_normal / np.linalg.norm(hand.palm_normal)
+    ring = trimesh.creation.torus(major_radius=0.035, minor_radius=0.012)
+    q0 = hand.open_configuration()
+    front = max(float((m.vertices @ approach).max()) for m in _link_meshes(hand, q0, np.eye(4)).values())
+    outcomes = set()
+    for _ in range(8):
+        q = _random_q(hand, rng) * 0.3 + q0 * 0.7
+        pose = np.eye(4)
+        pose[:3, :3] = _rotation(rng)
+        pose[:3, 3] = approach * (front + rng.uniform(-0.03, 0.03)) + rng.uniform(-0.03, 0.03, 3)
+        full = approach_report(hc, q, np.eye(4), approach, 0.06, Scene(), ring, pose)
+        quick = approach_report(hc, q, np.eye(4), approach, 0.06, Scene(), ring, pose, decide_only=True)
+        assert quick.clear is full.clear and quick.hits_object is full.hits_object
+        if full.hits_object:  # stopped at its first hit: the steps beyond are not visited
+            assert quick.hit_at <= full.hit_at + 1e-9 and quick.hit_link in hc.links
+        else:  # every step visited: a lower bound of the least distance
+            assert quick.min_object_distance <= full.min_object_distance + 1e-9
+        outcomes.add(full.clear)
+    assert outcomes == {True, False}  # both kinds were met
+
+
 def _capsule_judge(hand, q) -> dict[tuple[str, str], float]:
     """Closed form for the Shadow hand's finger links (each one capsule): per link pair of
     different fingers, the least distance between their axes (points 0.2 mm apart) minus
