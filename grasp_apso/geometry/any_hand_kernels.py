@@ -396,3 +396,54 @@ def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, c
             d = _groups_clearance(values, origin, spacing, r, t, group_pose, i, g, g + 1, K, cutoff, c)
             best = min(best, d)
         out[p] = best
+
+
+@_jit
+def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, groups, group_pose, palm_bound, K,
+                       cutoff, out):
+    """Least clearance (m) of the open hand at q (P, n), root at rot (P, 3, 3), trans (P, 3),
+    moved back along ``approach`` (P, 3) by each of ``backs`` (S,) m: its finger links'
+    and palm's spheres, per particle into out (P,).
+
+    Each finger posed once for all the retreats; a link, group or the palm's bounding
+    sphere farther than the least clearance found so far (or than ``cutoff``) is not
+    looked into: the least clearance is exact when at most ``cutoff``, a lower bound above
+    it (as :func:`finger_clearances` and :func:`palm_clearance`)."""
+    n_f, lmax = K[_NL].shape[0], K[_LR].shape[1]
+    poses = np.empty((lmax, 4, 4))
+    tmp = np.empty((4, 4))
+    local = np.empty((4, 4))
+    lc = np.empty(lmax)
+    c = np.empty(3)
+    moved = np.empty(3)
+    qp = np.empty(q.shape[1])
+    inv = 1.0 / spacing
+    for p in range(rot.shape[0]):
+        r = rot[p]
+        for j in range(q.shape[1]):
+            qp[j] = q[p, j]
+        best = np.inf
+        for f in range(n_f):
+            finger_poses(qp, f, K, poses, tmp, local)
+            for b in range(backs.shape[0]):
+                for i in range(3):
+                    moved[i] = trans[p, i] - backs[b] * approach[p, i]
+                d = _finger_clearance(values, origin, spacing, r, moved, poses, f, K, min(cutoff, best), lc, c)
+                best = min(best, d)
+        for b in range(backs.shape[0]):
+            for i in range(3):
+                moved[i] = trans[p, i] - backs[b] * approach[p, i]
+            limit = min(cutoff, best)
+            if palm_bound[3] >= 0.0:
+                for i in range(3):
+                    c[i] = r[i, 0] * palm_bound[0] + r[i, 1] * palm_bound[1] + r[i, 2] * palm_bound[2] + moved[i]
+                d = _grid_distance(values, origin[0], origin[1], origin[2], inv, spacing, c[0], c[1], c[2]) - palm_bound[3]
+                if d > limit:
+                    best = min(best, d)
+                    continue
+            for i in range(groups.shape[0]):
+                g = groups[i]
+                d = _groups_clearance(values, origin, spacing, r, moved, group_pose, i, g, g + 1, K, limit, c)
+                best = min(best, d)
+                limit = min(cutoff, best)
+        out[p] = best
