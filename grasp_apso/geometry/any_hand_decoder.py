@@ -305,7 +305,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     poses = np.empty((n_p, n_f, lmax, 4, 4))
     hk.link_poses(q, model.kin, poses)
     palm = np.empty(n_p)
-    hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, model.kin, CUTOFF, palm)
+    hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, t.palm_bound, model.kin, CUTOFF, palm)
     # Overlaps between fingers only where they can decide (two contacts, nothing else
     # illegal): the others are inactive whatever their fingers do.
     collide = np.zeros((n_p, n_f), dtype=bool)

@@ -385,15 +385,26 @@ def finger_overlaps(poses, pairs, K, allowed, out):
 
 
 @_jit
-def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, K, cutoff, out):
-    """Least clearance (m) of the palm's sphere groups (root-frame poses (Gp, 4, 4)) per particle (P,)."""
+def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, palm_bound, K, cutoff, out):
+    """Least clearance (m) of the palm's sphere groups (root-frame poses (Gp, 4, 4)) per
+    particle (P,): exact when at most ``cutoff``, else a lower bound above it. The palm's
+    bounding sphere ``palm_bound`` (4,) first; then each group whose bound is below the
+    least clearance found so far."""
     c = np.empty(3)
+    inv = 1.0 / spacing
     for p in range(rot.shape[0]):
-        best = np.inf
         r, t = rot[p], trans[p]
+        if palm_bound[3] >= 0.0:
+            for i in range(3):
+                c[i] = r[i, 0] * palm_bound[0] + r[i, 1] * palm_bound[1] + r[i, 2] * palm_bound[2] + t[i]
+            d = _grid_distance(values, origin[0], origin[1], origin[2], inv, spacing, c[0], c[1], c[2]) - palm_bound[3]
+            if d > cutoff:
+                out[p] = d
+                continue
+        best = np.inf
         for i in range(groups.shape[0]):
             g = groups[i]
-            d = _groups_clearance(values, origin, spacing, r, t, group_pose, i, g, g + 1, K, cutoff, c)
+            d = _groups_clearance(values, origin, spacing, r, t, group_pose, i, g, g + 1, K, min(cutoff, best), c)
             best = min(best, d)
         out[p] = best
 
