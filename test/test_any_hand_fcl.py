@@ -440,3 +440,26 @@ def test_a_grasp_object_is_measured_as_its_mesh(hands):
     b = object_report(hand, q, root, obj.mesh.copy())
     np.testing.assert_allclose(a.link_distance, b.link_distance, atol=1e-9)
     assert np.any(a.link_distance < 0.01)  # the posture reaches the box
+
+
+@pytest.mark.parametrize("mesh_name", ["mug", "ring"])
+def test_the_object_bound_never_puts_a_point_farther_out_than_it_is(mesh_name):
+    """``ObjectShape.hull_gap`` (the planes that spare most link samples the exact depth
+    query) must, where positive, be a lower bound of how far a point lies outside the object: judged by
+    trimesh's signed distance, on a non-convex mug and a torus, seeded points in and around."""
+    from grasp_apso.geometry.any_hand_shapes import object_shape
+    from grasp_apso.model.mesh_files import from_file
+
+    if mesh_name == "mug":
+        mesh = from_file("grasp_apso/data/meshes/mug.stl").mesh
+    else:
+        mesh = trimesh.creation.torus(major_radius=0.035, minor_radius=0.012)
+    shape = object_shape(mesh)
+    rng = np.random.default_rng(3)
+    lo, hi = mesh.bounds
+    points = rng.uniform(lo - 0.02, hi + 0.02, size=(3000, 3))
+    outside = -trimesh.proximity.signed_distance(mesh, points)  # trimesh: > 0 inside
+    gap = shape.hull_gap(points)
+    shown = gap > 0.0  # the only reading used: a point shown this far outside (at least)
+    assert np.all(gap[shown] <= outside[shown] + 1e-7)
+    assert shown.mean() > 0.3  # and it does bound: most points around are shown outside
