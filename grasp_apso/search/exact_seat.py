@@ -33,10 +33,12 @@ def _finger_depth(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray)
     finger's) at posture q: python-fcl and the exact mesh distance on those parts only (a
     whole-hand report per bisection step cost 60 ms with LEAP's meshes)."""
     from ..geometry.any_hand_queries import object_distances
+    from ..geometry.any_hand_shapes import DECIDE_WITHIN
 
     poses = hc.part_poses(q, root)
     objs = hc.place(poses, parts)
-    d = object_distances(hc.shapes, objs, poses, parts, shape, None)
+    # only a depth is wanted: parts apart from the object's hull keep that lower bound
+    d = object_distances(hc.shapes, objs, poses, parts, shape, None, DECIDE_WITHIN)
     return float(max(0.0, -np.min(d)))
 
 
