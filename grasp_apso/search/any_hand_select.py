@@ -158,7 +158,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     settings = _sim_settings()
     if settings is not None and c.forces is not None:
         c.squeeze = _squeeze(model, decoded, obj, c.forces, settings, c.fcl)
-    if scene is not None:
+    if scene is not None and c.valid:  # (an invalid grasp is refused whatever its approach)
         root_plan = pose @ root
         approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
         distance = float(fcl_api.scene_distance(hc, q, root_plan, scene))

@@ -102,12 +102,13 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
             else:
                 hi = mid
         seated = at(hi)
-    seated_report = fcl_api.object_report(hc, seated, root, obj)
-    if not seated_report.legal:
-        return q, report
+    # the pads first: a few point queries, where the whole hand's report takes tens of ms
     before, after = _pad_gaps(hand, q, root, obj, moved), _pad_gaps(hand, seated, root, obj, moved)
     if np.any((before <= pad_tolerance) & (after > pad_tolerance - PAD_MARGIN)):
         return q, report  # a pad that touched would no longer: the contact was not the pad's
+    seated_report = fcl_api.object_report(hc, seated, root, obj)
+    if not seated_report.legal:
+        return q, report
     return seated, seated_report
 
 
