@@ -463,3 +463,5 @@ def test_the_object_bound_never_puts_a_point_farther_out_than_it_is(mesh_name):
     shown = gap > 0.0  # the only reading used: a point shown this far outside (at least)
     assert np.all(gap[shown] <= outside[shown] + 1e-7)
     assert shown.mean() > 0.3  # and it does bound: most points around are shown outside
+    for within in (0.0, 0.0015, 0.01):  # the compiled filter reads the same planes
+        assert np.array_equal(shape.may_reach(points, within), gap < within)

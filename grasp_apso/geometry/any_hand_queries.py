@@ -190,7 +190,7 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
         near = from_frame(pose, _within(to_frame(poses[k], shapes.samples[k][0]), ball[0], ball[1] + inflate[i]))
         # only samples that may come within their inflation of the inside can deepen it
         # (the hull's planes bound the rest from below: most of a touching link's samples)
-        near = near[shape.hull_gap(near) < inflate[i]]
+        near = near[shape.may_reach(near, inflate[i])]
         depth = float(shape.distance(near).min()) - inflate[i] if len(near) else 0.0
         if verts is None:
             verts = to_frame(pose, shape.vertices)

@@ -35,6 +35,7 @@ import math
 from functools import cached_property
 
 import fcl
+import numba
 import numpy as np
 import trimesh
 
@@ -268,6 +269,17 @@ def hand_shapes(hand: HandModel) -> HandShapes:
                   nbytes=lambda s: s.nbytes)
 
 
+@numba.njit(cache=True, nogil=True)
+def _may_reach(points, normals, offsets, within, out):
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        out[i] = True
+        for k in range(normals.shape[0]):
+            if normals[k, 0] * x + normals[k, 1] * y + normals[k, 2] * z - offsets[k] >= within:
+                out[i] = False
+                break
+
+
 def _bounding_directions(normals: np.ndarray) -> np.ndarray:
     """(H, 3) unit directions: the 26 of a cube's faces, edges and corners, then up to
     :data:`BOUND_PLANES` - 26 of ``normals`` (M, 3), each the farthest from those chosen."""
@@ -318,6 +330,14 @@ class ObjectShape:
         """(N,) m: a lower bound of how far the points (N, 3), object frame, lie outside the
         object (<= 0 inside its convex hull)."""
         return (points @ self.hull_normals.T - self.hull_offsets).max(axis=1)
+
+    def may_reach(self, points: np.ndarray, within: float) -> np.ndarray:
+        """(N,) bool: the points (N, 3), object frame, that :meth:`hull_gap` does not show
+        ``within`` (m) or farther outside (compiled, a point leaves at its first such plane)."""
+        out = np.empty(len(points), dtype=np.bool_)
+        _may_reach(np.ascontiguousarray(points, dtype=np.float64), self.hull_normals, self.hull_offsets,
+                   float(within), out)
+        return out
 
     def collision_objects(self) -> tuple[fcl.CollisionObject, fcl.CollisionObject]:
         """This thread's fcl objects of the BVH and of the hull, moved with setTransform."""
