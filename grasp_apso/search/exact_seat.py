@@ -23,7 +23,7 @@ SEAT_DEPTH = 0.0005
 SEAT_TRAVEL = 0.25
 #: Bisection steps per finger (the opening found to SEAT_TRAVEL / 2**SEAT_STEPS).
 SEAT_STEPS = 5
-#: m: a seated pad point stays this much inside the contact tolerance of the surface
+#: m: a seated pad (sphere or point) stays this much inside the contact tolerance of the surface
 #: (an exact-distance check of it may differ by a few tenths of a millimetre).
 PAD_MARGIN = 0.00025
 
@@ -60,8 +60,8 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
     report : AnyHandReport
         ``fcl_api.object_report`` of ``q``.
     pad_tolerance : float, m
-        A seated finger's pad point that touched must stay within this (less
-        :data:`PAD_MARGIN`) of the surface: still a contact at the pad.
+        A seated finger whose pad touched (its sphere or its point within this of the
+        surface) must still touch, one of them within this less :data:`PAD_MARGIN`.
 
     Returns
     -------
@@ -104,7 +104,7 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
         seated = at(hi)
     # the pads first: a few point queries, where the whole hand's report takes tens of ms
     before, after = _pad_gaps(hand, q, root, obj, moved), _pad_gaps(hand, seated, root, obj, moved)
-    if np.any((before <= pad_tolerance) & (after > pad_tolerance - PAD_MARGIN)):
+    if np.any((before <= pad_tolerance).any(axis=1) & (after > pad_tolerance - PAD_MARGIN).all(axis=1)):
         return q, report  # a pad that touched would no longer: the contact was not the pad's
     seated_report = fcl_api.object_report(hc, seated, root, obj)
     if not seated_report.legal:
@@ -113,17 +113,29 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
 
 
 def _pad_gaps(hand, q: np.ndarray, root: np.ndarray, obj, fingers: np.ndarray) -> np.ndarray:
-    """Signed distance (m; negative inside) from each finger's pad point (``Finger.pad_center``,
-    on the pad link's exact surface) to the object's surface (its exact mesh distance), at
-    posture q (n,) and the root pose ``root`` (object frame).
+    """(len(fingers), 2) m: for each finger, the gap between its pad sphere (centre in the
+    hand's tables, :func:`.any_hand_tables.pad_sphere_center`) and the object's surface, and
+    the signed distance of its pad point (``Finger.pad_center``, on the pad link's exact
+    surface) to it (negative inside; the object's exact mesh distance), at posture q (n,)
+    and the root pose ``root`` (object frame).
 
-    The pad point, not the pad sphere: where a link's exact mesh stands out of its spheres
-    at the pad, the seated finger touches with its exact pad while its sphere stays off
-    (measured: LEAP's thumb fingertip, the sphere 2.2-3.1 mm off the mug once seated, its
-    pad point on it; 33 of 43 grasps refused for it)."""
+    A pad touches when either does: where a link's exact mesh stands out of its spheres at
+    the pad, the seated finger touches with its exact pad point while its sphere stays off
+    (measured: LEAP's thumb fingertip, the sphere 2.2-3.1 mm off the mug once seated; 33 of
+    43 grasps were refused for it when only the sphere counted)."""
     from ..geometry.any_hand_shapes import object_shape
+    from ..geometry.any_hand_tables import hand_tables
 
+    sphere_local = hand_tables(hand).pad_center  # (F, 3), cached per hand
     poses = hand.link_transforms(q)
-    points = np.array([(root @ poses[hand.fingers[int(f)].pad_link] @ np.append(hand.fingers[int(f)].pad_center,
-                                                                                  1.0))[:3] for f in fingers])
-    return object_shape(obj).distance(points)
+    out = np.empty((len(fingers), 2))
+    points = []
+    for f in fingers:
+        finger = hand.fingers[int(f)]
+        pose = root @ poses[finger.pad_link]
+        points.append((pose @ np.append(sphere_local[int(f)], 1.0))[:3])
+        points.append((pose @ np.append(finger.pad_center, 1.0))[:3])
+    distance = object_shape(obj).distance(np.array(points)).reshape(-1, 2)
+    out[:, 0] = distance[:, 0] - np.array([hand.fingers[int(f)].pad_radius for f in fingers])
+    out[:, 1] = distance[:, 1]
+    return out
