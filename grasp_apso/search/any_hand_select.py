@@ -53,12 +53,13 @@ MAX_IMBALANCE = 0.25
 #: with ``simulate`` they are simulated best first until ``max_grasps`` held).
 SPARE = 3
 #: Without ``simulate``, distinct grasps verified per requested one: the best ``max_grasps``
-#: of them by class and hold score (:func:`hold_score`) are returned (was 1: the first
-#: ``max_grasps`` verified). Measured (``bench/held_rate.py``, 21 objects on a table): the
-#: hold score choosing among 15 instead of 5, seed 0, best grasp held Shadow 13 -> 15 of 21
-#: (14 among 5); seeds 0-2, Allegro-like, 51 of 63 either way, all returned grasps held
-#: 175/232 -> 180/232; the plan about 5 % longer (the extra python-fcl checks).
-DEFAULT_SPARE = 3
+#: of them by class and hold score (:func:`hold_score`) are returned. Measured
+#: (``bench/held_rate.py --seeds 3``, 21 objects on a table, 63 plans), 3 against 1: best
+#: grasp held the same (Allegro-like 51, Shadow 49, LEAP 35), all returned grasps held a
+#: little more (180/232 against 175/232, 199/262 against 192/262, 118/197 against
+#: 120/197) but the median plan longer (1.3 against 1.3 s, 1.4 against 1.2 s, 2.5 against
+#: 2.2 s: the python-fcl checks and seating of the extra grasps), so 1.
+DEFAULT_SPARE = 1
 #: Within a class (balanced robust force closure, force closure, ...) the grasps are ranked
 #: by their hold score ``h = robust epsilon * (1 - closing imbalance)`` (:func:`hold_score`,
 #: mapped to [0, 1) as ``h / (h + HOLD_SCALE)``), the fitness only breaking ties
