@@ -167,6 +167,8 @@ def run_case(task: tuple) -> dict:
                                 options.friction_edges) if len(pts) >= 2 else 0.0
         features = {
             "rank": cand.rank, "epsilon": float(cand.epsilon), "force_closure": bool(cand.force_closure),
+            "fitness": float(cand.fitness), "quality": float(cand.grasp_quality),
+            "scene_distance_mm": 1000 * float(cand.scene_distance),
             "nominal_epsilon": nominal, "robust_epsilon": robust,
             "margin": min(1.0, robust / nominal) if nominal > 0 else 0.0,
             "fingers": [c.finger for c in cand.contacts],
