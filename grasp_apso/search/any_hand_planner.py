@@ -47,6 +47,8 @@ SIMULATED_ROUNDS = 2
 #: search, 51/63 with two (the extra search runs for the hard plans only: thin objects
 #: lying flat, the bowl's rim).
 ANALYTIC_ROUNDS = 2
+#: ... that second search (without ``simulate``) runs this fraction of the iterations.
+ANALYTIC_RETRY_ITERATIONS = 0.5
 #: The class of a balanced robust force-closure grasp in :func:`_grasp_class`.
 BALANCED_CLASS = 3
 
@@ -91,7 +93,11 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         archive = LeaderArchive(ARCHIVE_FACTOR * options.max_grasps, options.min_orientation_gap,
                                 options.min_position_gap)
         problem = AnyHandProblem(model, shape, options, rng, archive, should_stop)
-        swarm = run_swarm(problem, options.swarm_options(), rng, options.algorithm == "apso", progress, should_stop)
+        swarm_options = options.swarm_options()
+        if round_ and not options.simulate:
+            swarm_options = replace(swarm_options, iterations=max(1, int(ANALYTIC_RETRY_ITERATIONS
+                                                                         * swarm_options.iterations)))
+        swarm = run_swarm(problem, swarm_options, rng, options.algorithm == "apso", progress, should_stop)
         evaluations += problem.evaluations
         try:
             checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene)
