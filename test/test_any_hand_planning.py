@@ -222,3 +222,27 @@ def test_paper_hand_result_names_its_hand():
                   rng=np.random.default_rng(0))
     assert result.hand_name == "apso_paper_hand"
     assert result.hand_hash == hashlib.sha256(default_hand_path().read_bytes()).hexdigest()
+
+
+def test_a_second_search_goes_on_counting_the_progress(hands):
+    """A plan whose first search's best grasp is not balanced robust force closure searches
+    again (``ANALYTIC_ROUNDS``): the progress goes on from the first search's iterations,
+    evaluations and time, and the result's history and ``iterations_run`` count both
+    searches' iterations once (as the node's feedback promises: 1 .. iterations_run)."""
+    from grasp_apso.search.any_hand_planner import ANALYTIC_RETRY_ITERATIONS
+
+    options = PlanOptions(particles=12, iterations=6, max_grasps=2)
+    second = int(ANALYTIC_RETRY_ITERATIONS * options.iterations)
+    rounds = set()
+    for seed in range(4):
+        obj = builtin("barrel")
+        seen = []
+        result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["inspire"],
+                      scene=Scene.table_under(np.asarray(obj.mesh.vertices)), progress=seen.append)
+        assert [s.iteration for s in seen] == list(range(1, result.iterations_run + 1))
+        assert [s.iteration for s in result.history] == [s.iteration for s in seen]
+        assert all(b.evaluations > a.evaluations and b.elapsed >= a.elapsed for a, b in zip(seen, seen[1:]))
+        assert result.evaluations >= seen[-1].evaluations
+        assert result.iterations_run in (options.iterations, options.iterations + second)
+        rounds.add(result.iterations_run)
+    assert options.iterations + second in rounds  # a second search ran in at least one plan

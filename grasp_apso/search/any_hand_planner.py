@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -89,7 +89,12 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
     preparation = time.perf_counter() - t0
     t1 = time.perf_counter()
     first, evaluations, rounds = None, 0, SIMULATED_ROUNDS if options.simulate else ANALYTIC_ROUNDS
+    done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
     for round_ in range(rounds):
+        # A later round's progress goes on from the earlier rounds' (iteration, evaluations,
+        # elapsed): the progress topic and the result's history count every iteration once.
+        shift = _Shift(done, evaluations, time.perf_counter() - t1)
+        round_progress = None if progress is None else (lambda stats, _s=shift: progress(_s(stats)))
         archive = LeaderArchive(ARCHIVE_FACTOR * options.max_grasps, options.min_orientation_gap,
                                 options.min_position_gap)
         problem = AnyHandProblem(model, shape, options, rng, archive, should_stop)
@@ -97,8 +102,10 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         if round_ and not options.simulate:
             swarm_options = replace(swarm_options, iterations=max(1, int(ANALYTIC_RETRY_ITERATIONS
                                                                          * swarm_options.iterations)))
-        swarm = run_swarm(problem, swarm_options, rng, options.algorithm == "apso", progress, should_stop)
+        swarm = run_swarm(problem, swarm_options, rng, options.algorithm == "apso", round_progress, should_stop)
         evaluations += problem.evaluations
+        history.extend(shift(stats) for stats in swarm.history)
+        done += swarm.iterations_run
         try:
             checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene)
         except PlanningError:
@@ -121,7 +128,21 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             break
     # simulate: a round with a grasp that held, else the first round that found grasps;
     # otherwise the first round whose best grasp is in the highest class
-    return replace(first, evaluations=evaluations, planning_time=time.perf_counter() - t1)
+    return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
+                   planning_time=time.perf_counter() - t1)
+
+
+@dataclass(frozen=True)
+class _Shift:
+    """Renumbers a later round's :class:`IterationStats` after the rounds before it."""
+
+    iterations: int
+    evaluations: int
+    elapsed: float
+
+    def __call__(self, stats: IterationStats) -> IterationStats:
+        return replace(stats, iteration=stats.iteration + self.iterations, iterations=stats.iterations + self.iterations,
+                       evaluations=stats.evaluations + self.evaluations, elapsed=stats.elapsed + self.elapsed)
 
 
 def _grasp_class(result) -> int:
