@@ -384,29 +384,33 @@ def finger_overlaps(poses, pairs, K, allowed, out):
                 out[p, f2] = True
 
 
+@_inline
+def _palm(values, origin, spacing, rot, trans, groups, group_pose, palm_bound, K, cutoff, c):
+    """Least clearance (m) of the palm's sphere groups with the root at rot, trans: its
+    bounding sphere ``palm_bound`` (4,) first (returned when beyond ``cutoff``); then each
+    group whose bound is below ``cutoff`` and the least clearance found so far."""
+    if palm_bound[3] >= 0.0:
+        for i in range(3):
+            c[i] = rot[i, 0] * palm_bound[0] + rot[i, 1] * palm_bound[1] + rot[i, 2] * palm_bound[2] + trans[i]
+        d = _grid_distance(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing, c[0], c[1], c[2]) \
+            - palm_bound[3]
+        if d > cutoff:
+            return d
+    best = np.inf
+    for i in range(groups.shape[0]):
+        g = groups[i]
+        best = min(best, _groups_clearance(values, origin, spacing, rot, trans, group_pose, i, g, g + 1, K,
+                                           min(cutoff, best), c))
+    return best
+
+
 @_jit
 def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, palm_bound, K, cutoff, out):
     """Least clearance (m) of the palm's sphere groups (root-frame poses (Gp, 4, 4)) per
-    particle (P,): exact when at most ``cutoff``, else a lower bound above it. The palm's
-    bounding sphere ``palm_bound`` (4,) first; then each group whose bound is below the
-    least clearance found so far."""
+    particle (P,): exact when at most ``cutoff``, else a lower bound above it."""
     c = np.empty(3)
-    inv = 1.0 / spacing
     for p in range(rot.shape[0]):
-        r, t = rot[p], trans[p]
-        if palm_bound[3] >= 0.0:
-            for i in range(3):
-                c[i] = r[i, 0] * palm_bound[0] + r[i, 1] * palm_bound[1] + r[i, 2] * palm_bound[2] + t[i]
-            d = _grid_distance(values, origin[0], origin[1], origin[2], inv, spacing, c[0], c[1], c[2]) - palm_bound[3]
-            if d > cutoff:
-                out[p] = d
-                continue
-        best = np.inf
-        for i in range(groups.shape[0]):
-            g = groups[i]
-            d = _groups_clearance(values, origin, spacing, r, t, group_pose, i, g, g + 1, K, min(cutoff, best), c)
-            best = min(best, d)
-        out[p] = best
+        out[p] = _palm(values, origin, spacing, rot[p], trans[p], groups, group_pose, palm_bound, K, cutoff, c)
 
 
 @_jit
@@ -421,40 +425,28 @@ def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, 
     looked into: the least clearance is exact when at most ``cutoff``, a lower bound above
     it (as :func:`finger_clearances` and :func:`palm_clearance`)."""
     n_f, lmax = K[_NL].shape[0], K[_LR].shape[1]
+    n_b = backs.shape[0]
     poses = np.empty((lmax, 4, 4))
     tmp = np.empty((4, 4))
     local = np.empty((4, 4))
     lc = np.empty(lmax)
     c = np.empty(3)
-    moved = np.empty(3)
+    moved = np.empty((n_b, 3))
     qp = np.empty(q.shape[1])
-    inv = 1.0 / spacing
     for p in range(rot.shape[0]):
         r = rot[p]
         for j in range(q.shape[1]):
             qp[j] = q[p, j]
+        for b in range(n_b):
+            for i in range(3):
+                moved[b, i] = trans[p, i] - backs[b] * approach[p, i]
         best = np.inf
         for f in range(n_f):
             finger_poses(qp, f, K, poses, tmp, local)
-            for b in range(backs.shape[0]):
-                for i in range(3):
-                    moved[i] = trans[p, i] - backs[b] * approach[p, i]
-                d = _finger_clearance(values, origin, spacing, r, moved, poses, f, K, min(cutoff, best), lc, c)
-                best = min(best, d)
-        for b in range(backs.shape[0]):
-            for i in range(3):
-                moved[i] = trans[p, i] - backs[b] * approach[p, i]
-            limit = min(cutoff, best)
-            if palm_bound[3] >= 0.0:
-                for i in range(3):
-                    c[i] = r[i, 0] * palm_bound[0] + r[i, 1] * palm_bound[1] + r[i, 2] * palm_bound[2] + moved[i]
-                d = _grid_distance(values, origin[0], origin[1], origin[2], inv, spacing, c[0], c[1], c[2]) - palm_bound[3]
-                if d > limit:
-                    best = min(best, d)
-                    continue
-            for i in range(groups.shape[0]):
-                g = groups[i]
-                d = _groups_clearance(values, origin, spacing, r, moved, group_pose, i, g, g + 1, K, limit, c)
-                best = min(best, d)
-                limit = min(cutoff, best)
+            for b in range(n_b):
+                best = min(best, _finger_clearance(values, origin, spacing, r, moved[b], poses, f, K,
+                                                   min(cutoff, best), lc, c))
+        for b in range(n_b):
+            best = min(best, _palm(values, origin, spacing, r, moved[b], groups, group_pose, palm_bound, K,
+                                   min(cutoff, best), c))
         out[p] = best
