@@ -11,7 +11,6 @@ candidates, verified and ranked in :mod:`grasp_apso.search.any_hand_select`.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, replace
 from typing import Callable
@@ -27,6 +26,7 @@ from .any_hand_select import build_result, select_any
 from .grg import classify_shape
 from .options import PlanOptions
 from .problem import ARCHIVE_FACTOR, SwarmProblem
+from .ranking import ranking_class
 from .result import SIM_HELD
 from .swarm import IterationStats, run_swarm
 
@@ -49,7 +49,7 @@ SIMULATED_ROUNDS = 2
 ANALYTIC_ROUNDS = 2
 #: ... that second search (without ``simulate``) runs this fraction of the iterations.
 ANALYTIC_RETRY_ITERATIONS = 0.5
-#: The class of a balanced robust force-closure grasp in :func:`_grasp_class`.
+#: The class of a balanced robust force-closure grasp in :func:`_best_class`.
 BALANCED_CLASS = 3
 
 
@@ -88,7 +88,8 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             shape = shape.with_support(scene_obj.planes[:, :3])
     preparation = time.perf_counter() - t0
     t1 = time.perf_counter()
-    first, evaluations, rounds = None, 0, SIMULATED_ROUNDS if options.simulate else ANALYTIC_ROUNDS
+    first, first_class, evaluations = None, -1, 0
+    rounds = SIMULATED_ROUNDS if options.simulate else ANALYTIC_ROUNDS
     done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
     for round_ in range(rounds):
         # A later round's progress goes on from the earlier rounds' (iteration, evaluations,
@@ -120,9 +121,10 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
                 break
             first = first or result
         else:
-            if first is None or _grasp_class(result) > _grasp_class(first):
-                first = result
-            if _grasp_class(first) >= BALANCED_CLASS:
+            best = _best_class(checked)
+            if first is None or best > first_class:
+                first, first_class = result, best
+            if first_class >= BALANCED_CLASS:
                 break
         if swarm.cancelled or (should_stop is not None and should_stop()):
             break
@@ -145,11 +147,12 @@ class _Shift:
                        evaluations=stats.evaluations + self.evaluations, elapsed=stats.elapsed + self.elapsed)
 
 
-def _grasp_class(result) -> int:
-    """The ranking class of a (not simulated) result's best grasp: 3 balanced robust force
-    closure, 2 force closure, 1 valid, 0 not valid (the tier of
-    :func:`grasp_apso.search.ranking.grasp_quality`, which is ``(class + f) / 4``)."""
-    return int(min(3.0, math.floor(4.0 * result.candidates[0].grasp_quality))) if result.candidates else -1
+def _best_class(checked) -> int:
+    """The ranking class of a (not simulated) round's best grasp: the highest of its
+    verified grasps' (:func:`grasp_apso.search.ranking.ranking_class`; the ranking puts it
+    first), 3 balanced robust force closure, 2 force closure, 1 valid, 0 not valid."""
+    return int(ranking_class(np.array([c.valid for c in checked]), np.array([c.force_closure for c in checked]),
+                             np.array([c.balanced for c in checked])).max())
 
 
 def warm_up_any_hand(hand) -> float:

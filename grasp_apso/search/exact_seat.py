@@ -120,9 +120,10 @@ def _pad_gaps(hand, q: np.ndarray, root: np.ndarray, obj, fingers: np.ndarray) -
     and the root pose ``root`` (object frame).
 
     A pad touches when either does: where a link's exact mesh stands out of its spheres at
-    the pad, the seated finger touches with its exact pad point while its sphere stays off
-    (measured: LEAP's thumb fingertip, the sphere 2.2-3.1 mm off the mug once seated; 33 of
-    43 grasps were refused for it when only the sphere counted)."""
+    the pad, a seated finger may touch with its exact pad point while its sphere stays off.
+    The pad point alone is not enough before seating: it let fingers whose pads did not
+    touch leave the surface (the independent unseen-hands check found LEAP thumbs and a
+    Barrett finger 2-4 mm off)."""
     from ..geometry.any_hand_shapes import object_shape
     from ..geometry.any_hand_tables import hand_tables
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["grasp_quality", "rank_order"]
+__all__ = ["grasp_quality", "rank_order", "ranking_class"]
 
 
 def grasp_quality(fitness: np.ndarray, valid: np.ndarray, force_closure: np.ndarray,
@@ -41,13 +41,19 @@ def grasp_quality(fitness: np.ndarray, valid: np.ndarray, force_closure: np.ndar
     counts as robust).
     """
     f = np.clip(np.nan_to_num(np.asarray(fitness, dtype=float), nan=0.0, neginf=0.0), 0.0, 1.0)
-    valid = np.asarray(valid, dtype=bool)
-    closure = valid & np.asarray(force_closure, dtype=bool)
-    robust = closure if robust is None else closure & np.asarray(robust, dtype=bool)
-    c = np.where(robust, 3.0, np.where(closure, 2.0, np.where(valid, 1.0, 0.0)))
+    c = ranking_class(valid, force_closure, robust)
     if held is None:
         return (c + f) / 4.0
     return (4.0 * np.asarray(held, dtype=bool) + c + f) / 8.0
+
+
+def ranking_class(valid: np.ndarray, force_closure: np.ndarray, robust: np.ndarray | None = None) -> np.ndarray:
+    """The class ``c`` of the formula (N,) float: 3 robust force closure, 2 force closure,
+    1 valid, 0 not valid (arguments as :func:`grasp_quality`)."""
+    valid = np.asarray(valid, dtype=bool)
+    closure = valid & np.asarray(force_closure, dtype=bool)
+    robust = closure if robust is None else closure & np.asarray(robust, dtype=bool)
+    return np.where(robust, 3.0, np.where(closure, 2.0, np.where(valid, 1.0, 0.0)))
 
 
 def rank_order(quality: np.ndarray, epsilon: np.ndarray) -> np.ndarray:
