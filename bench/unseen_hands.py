@@ -24,15 +24,21 @@ link at the candidate's ``wrist_pose``:
     (a 4 m box whose top face is the support plane) >= clearance - 0.5 mm;
 (b) ``limits``: every joint (actuated and mimic followers, from the URDF's own limits) in range
     (1e-6 rad slack), at the grasp and at the pre-grasp;
-(c) ``pads``: the pad of every contacting finger on the object: the sphere of radius
-    ``Finger.pad_radius`` through the pad point ``Finger.pad_center`` (placed by yourdfpy),
-    centred along the inward normal of the URDF's own fingertip mesh there, within 2 mm of
-    the object's surface (trimesh) with its pad side (the half facing the pad normal);
-    also reported, not a check: ``pad_pts``, candidates whose pad points themselves lie
-    within 2 mm (and the share of contacts whose pad points do), and ``fc``, force-closure
-    candidates;
+(c) ``pads``: every contacting finger's pad link touches the object, read on the URDF's own
+    collision geometry alone (no pad point, no pad radius of the planner's hand model): the
+    python-fcl distance from the link's collision elements to the object's mesh within 2 mm
+    (0 when they collide; (d) bounds how deep);
 (d) ``depth``: no link penetrates the object by more than 1 mm (python-fcl collide, the
     depth then measured from surface samples with trimesh's signed distance both ways).
+
+Also reported, not checks: ``pad_sph``, candidates whose pad spheres (radius
+``Finger.pad_radius`` through the pad point ``Finger.pad_center``, placed by yourdfpy,
+centred along the inward normal of the URDF's own fingertip mesh there: the planner's model
+of the pad) lie within 2 mm of the object's surface (trimesh) with their pad side -- on a
+fingertip thinner than its pad sphere (LEAP's plates) the sphere stands out of the link,
+so it reads inside the object where the link itself rests on it; ``pad_pts``, candidates
+whose pad points themselves lie within 2 mm (and the share of contacts whose pad points
+do); and ``fc``, force-closure candidates.
 
 Prints per hand: plans with a grasp / plans, candidates passing each check, the median plan
 time; then the failing candidates. Writes ``bench/results/unseen_hands.json``.
@@ -69,8 +75,9 @@ PAD_TOL = 0.002      # m, pad centre to the object's surface
 DEPTH_TOL = 0.001    # m, a link inside the object
 LIMIT_TOL = 1e-6     # rad or m
 CHECKS = ("table", "limits", "pads", "depth")
-#: Reported next to the checks: pad points themselves within 2 mm, force closure.
-INFO = ("pad_pts", "fc")
+#: Reported next to the checks: pad spheres on the surface, pad points themselves within 2 mm,
+#: force closure.
+INFO = ("pad_sph", "pad_pts", "fc")
 
 
 def load_object(name: str):
@@ -211,13 +218,19 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
     bad_limits = ind.limit_violations(cfg) + ind.limit_violations(ind.configuration(names, q_pre))
     poses = ind.link_poses(cfg, hand.root_link, np.asarray(cand.wrist_pose, float))
     table_d, table_link, depth, depth_link = math.inf, "", 0.0, ""
+    pad_links = {hand.finger(c.finger).pad_link for c in cand.contacts}
+    link_gap = {link: math.inf for link in pad_links}  # m, pad link's exact geometry to the object
     for link, origin, geom, mesh in ind.elements:
         pose = poses[link] @ origin
         co = _fcl_object(geom, pose)
         d = fcl.distance(table, co, fcl.DistanceRequest(), fcl.DistanceResult())
         if d < table_d:
             table_d, table_link = d, link
-        if fcl.collide(co, obj_fcl, fcl.CollisionRequest(), fcl.CollisionResult()):
+        touching = fcl.collide(co, obj_fcl, fcl.CollisionRequest(), fcl.CollisionResult())
+        if link in link_gap:
+            gap = 0.0 if touching else fcl.distance(co, obj_fcl, fcl.DistanceRequest(), fcl.DistanceResult())
+            link_gap[link] = min(link_gap[link], max(float(gap), 0.0))
+        if touching:
             placed = mesh.copy()
             placed.apply_transform(pose)
             p = penetration(placed, obj_mesh, rng)
@@ -241,12 +254,14 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
         "rank": cand.rank, "table_mm": 1000 * table_d, "table_link": table_link,
         "table": bool(table_d >= clearance - TABLE_TOL),
         "limits": not bad_limits, "limit_violations": bad_limits,
-        "pads_mm": {f: round(1000 * d, 2) for f, d, _ in pads},
-        "pads": bool(pads) and all(abs(d) <= PAD_TOL and side for _, d, side in pads),
+        "pad_sph_mm": {f: round(1000 * d, 2) for f, d, _ in pads},
+        "pad_sph": bool(pads) and all(abs(d) <= PAD_TOL and side for _, d, side in pads),
         "pad_points_mm": [round(1000 * d, 2) for d in points],
         "pad_pts": bool(points) and max(points) <= PAD_TOL,
         "fc": bool(cand.force_closure),
         "depth_mm": 1000 * depth, "depth_link": depth_link, "depth": bool(depth <= DEPTH_TOL),
+        "pads_mm": {link: round(1000 * g, 2) for link, g in link_gap.items()},
+        "pads": bool(link_gap) and max(link_gap.values()) <= PAD_TOL,
         "force_closure": bool(cand.force_closure), "fingers": [c.finger for c in cand.contacts],
     }
 
@@ -325,7 +340,7 @@ def report(rows: list[dict]) -> dict:
             if failed:
                 print(f"  {r['hand']:24s} {r['object']:16s} s{r['seed']} g{c['rank']}: {','.join(failed)}; "
                       f"table {c['table_mm']:.1f} mm ({c['table_link']}), depth {c['depth_mm']:.1f} mm "
-                      f"({c['depth_link']}), pads {c['pads_mm']} {'; '.join(c['limit_violations'][:2])}")
+                      f"({c['depth_link']}), pad links {c['pads_mm']}, pad spheres {c['pad_sph_mm']} {'; '.join(c['limit_violations'][:2])}")
     return summary
 
 
