@@ -5,11 +5,16 @@ there -- lies within 2 mm of the object on its pad side (the half facing the pad
 fingertip touching with its back or its very tip once passed), and the reported contact is
 on that pad.
 
+The pad link itself touches too: its collision geometry, placed by yourdfpy, within 2 mm of
+the object by python-fcl's exact mesh distance (no pad point or pad radius involved; a pad
+sphere wider than its fingertip once touched where the link was not).
+
 Checked independently of the planner's kinematics: the URDF read again with yourdfpy, its
 forward kinematics (mimic joints applied by yourdfpy) placing the pad points, trimesh's exact
 proximity on the object mesh; joint limits from the URDF's own ``<limit>`` elements."""
 from __future__ import annotations
 
+import fcl
 import numpy as np
 import pytest
 import trimesh
@@ -31,12 +36,18 @@ def urdf(request, tmp_path_factory):
     return write_allegro_like(tmp_path_factory.mktemp("pads"), "mixed", coupled=request.param)
 
 
+def _world_base(robot: yourdfpy.URDF, hand, cand) -> np.ndarray:
+    """The URDF's base link in the planning frame (4, 4) with the robot posed at the
+    candidate's joints (yourdfpy's forward kinematics), its root link at ``wrist_pose``."""
+    robot.update_cfg(dict(zip(hand.actuated_joints, np.asarray(cand.joint_positions, float))))
+    base_root = robot.get_transform(frame_to=hand.root_link, frame_from=robot.base_link)
+    return np.asarray(cand.wrist_pose, float) @ np.linalg.inv(base_root)
+
+
 def _pads(robot: yourdfpy.URDF, hand, cand, mesh: trimesh.Trimesh) -> dict[str, tuple[float, float, float]]:
     """Each contacting finger -> (pad gap m, cosine between its pad normal and the way to
     the object, distance m of the reported contact from the pad sphere's surface)."""
-    robot.update_cfg(dict(zip(hand.actuated_joints, np.asarray(cand.joint_positions, float))))
-    base_root = robot.get_transform(frame_to=hand.root_link, frame_from=robot.base_link)
-    world_base = np.asarray(cand.wrist_pose, float) @ np.linalg.inv(base_root)
+    world_base = _world_base(robot, hand, cand)
     out = {}
     for contact in cand.contacts:
         finger = hand.finger(contact.finger)
@@ -56,11 +67,36 @@ def _pads(robot: yourdfpy.URDF, hand, cand, mesh: trimesh.Trimesh) -> dict[str, 
     return out
 
 
+def _bvh(mesh: trimesh.Trimesh) -> fcl.CollisionObject:
+    model = fcl.BVHModel()
+    model.beginModel(len(mesh.vertices), len(mesh.faces))
+    model.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
+    model.endModel()
+    return fcl.CollisionObject(model, fcl.Transform())
+
+
+def _pad_link_gaps(robot: yourdfpy.URDF, hand, cand, obj_fcl) -> dict[str, float]:
+    """Each contacting finger -> python-fcl distance (m, 0 when touching) from its pad
+    link's collision geometry (placed by yourdfpy) to the object."""
+    world_base = _world_base(robot, hand, cand)
+    out = {}
+    for contact in cand.contacts:
+        finger = hand.finger(contact.finger)
+        tip = trimesh.util.concatenate([g.to_trimesh() for g in hand.collision[finger.pad_link]])
+        tip.apply_transform(world_base @ robot.get_transform(frame_to=finger.pad_link, frame_from=robot.base_link))
+        link = _bvh(tip)
+        touching = fcl.collide(link, obj_fcl, fcl.CollisionRequest(), fcl.CollisionResult())
+        out[contact.finger] = 0.0 if touching else float(
+            fcl.distance(link, obj_fcl, fcl.DistanceRequest(), fcl.DistanceResult()))
+    return out
+
+
 def test_pads_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
     hand = load_hand(urdf)
     robot = yourdfpy.URDF.load(str(urdf), load_meshes=False, load_collision_meshes=False,
                                build_collision_scene_graph=False)
     obj = builtin("cube")
+    obj_fcl = _bvh(obj.mesh)
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
     checked = 0
     for seed in (0, 1):
@@ -75,6 +111,8 @@ def test_pads_touch_the_object_and_joints_stay_in_the_urdf_limits(urdf):
                 assert abs(gap) <= PAD_TOLERANCE, (seed, cand.rank, finger, pads)
                 assert facing >= -0.05, (seed, cand.rank, finger, pads)  # the pad side, not the back
                 assert reported <= PAD_TOLERANCE, (seed, cand.rank, finger, pads)
+            links = _pad_link_gaps(robot, hand, cand, obj_fcl)
+            assert max(links.values()) <= PAD_TOLERANCE, (seed, cand.rank, links)
             values = dict(zip(hand.actuated_joints, cand.joint_positions))
             for name, joint in robot.joint_map.items():
                 if joint.mimic is not None:

@@ -14,24 +14,14 @@ import numpy as np
 import pytest
 
 from grasp_apso.geometry import any_hand_fcl as fcl_api
-from grasp_apso.model.builtin import builtin
-from grasp_apso.model.hands.load import load_hand
-from grasp_apso.model.scene import Scene
 from grasp_apso.search.exact_seat import SEAT_DEPTH, SEAT_TRAVEL, seat_fingers
-from grasp_apso.search.planner import PlanOptions, plan
-from hand_files import write_allegro_like
 
 PAD_TOLERANCE = 0.002
 
 
 @pytest.fixture(scope="module")
-def grasp(tmp_path_factory):
-    hand = load_hand(write_allegro_like(tmp_path_factory.mktemp("hand"), "mixed"))
-    cube = builtin("cube")
-    table = Scene.table_under(np.asarray(cube.mesh.vertices))
-    result = plan(cube, options=PlanOptions(particles=30, iterations=20, max_grasps=1),
-                  rng=np.random.default_rng(0), hand=hand, scene=table)
-    return hand, cube, result.candidates[0]
+def grasp(allegro_cube_grasp):
+    return allegro_cube_grasp
 
 
 def _pressed(hand, hc, cand, cube):

@@ -7,7 +7,9 @@ and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`), and the python-fcl checks
 of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
-there. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`, where a *balanced* force-closure
+there; fingers whose exact geometry presses into the object are seated on it
+(:mod:`.exact_seat`) and contacting fingers whose pad links stand off it closed onto it
+(:mod:`.exact_touch`), their contacts and the grasp's closure then taken again. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`, where a *balanced* force-closure
 grasp counts as robust: the servos' squeezing forces along the contact normals can cancel
 (:func:`grasp_apso.quality.closing.closing_forces`, imbalance at most
 :data:`MAX_IMBALANCE`), so the closing does not shove or roll the object; within a class
@@ -38,6 +40,7 @@ from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .any_hand_pads import final_decodings, pads_on
 from .archive import wrists_distinct
 from .exact_seat import seat_fingers
+from .exact_touch import touch_pads
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
 
@@ -171,6 +174,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
                                 model.settings.tolerance)
         decoded.q[0] = q
         decoded.closed[0, model.layout.joints] = q
+    q = _touch(model, c, fcl_api, hc, q, root, options, obj)
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
     if settings is not None and c.forces is not None:
@@ -195,6 +199,33 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
         c.scene_distance = min(distance, float(path.min_scene_distance))
         c.scene_clear = c.scene_clear and c.scene_distance >= options.clearance and not path.hits_object
     return c
+
+
+def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, options, obj) -> np.ndarray:
+    """The contacting fingers whose pad links stand off the object (exact geometry) closed
+    onto it (:func:`.exact_touch.touch_pads`): their contacts moved to where the links
+    touch, the fingers that cannot touch with their pads (left where they are) no
+    contacts; the grasp's closure,
+    closing forces and report follow. Returns the posture (n,)."""
+    decoded = c.decoded
+    q_new, moved, lost, points = touch_pads(hc, model.hand, q, root, obj, model.sdf, c.fcl, decoded.contact[0])
+    if not (moved.any() or lost.any()):
+        return q
+    decoded.q[0] = q_new
+    decoded.closed[0, model.layout.joints] = q_new
+    if moved.any():
+        surface, normals = model.sdf.closest_surface_point(points[moved])
+        decoded.contact_points[0, moved] = surface
+        decoded.contact_normals[0, moved] = normals
+    decoded.contact[0, lost] = False
+    c.fcl = fcl_api.object_report(hc, q_new, root, obj)
+    c.valid = c.valid and int(decoded.contact[0].sum()) >= 2
+    c.imbalance, c.forces = _closing(model, decoded, obj)
+    c.epsilon, c.force_closure, c.robust_epsilon = 0.0, False, 0.0
+    _closure(c, options, obj)
+    if c.forces is None:
+        c.squeeze = squeeze_posture(model, q_new)
+    return q_new
 
 
 def pre_grasp_postures(hand, q: np.ndarray, q_open: np.ndarray) -> list[np.ndarray]:

@@ -1,0 +1,104 @@
+"""Bringing a general hand's contacting pads onto the object's exact collision geometry
+(:mod:`grasp_apso.search.exact_touch`).
+
+A planned grasp of the Allegro-like URDF hand on the cube, one contacting finger then
+opened until its pad link stands 3-8 mm off the cube (python-fcl on the links' exact
+shapes, :func:`grasp_apso.geometry.any_hand_fcl.object_report`, measures; the closing is
+what is tested): closed again, that finger's pad link rests on the cube (a fresh exact
+report), no link of it presses in, no other finger moved, and the new contact point lies on
+the cube's surface by trimesh's exact proximity. A finger already on the surface is left as
+it is; one that cannot reach the object is no contact and does not move.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from grasp_apso.geometry import any_hand_fcl as fcl_api
+from grasp_apso.geometry.sdf import cached_sdf_grid
+from grasp_apso.search.exact_seat import SEAT_DEPTH
+from grasp_apso.search.exact_touch import TOUCH_GAP, TOUCH_REST, touch_pads
+
+PAD_TOLERANCE = 0.002  # m, the issue's
+
+
+@pytest.fixture(scope="module")
+def grasp(allegro_cube_grasp):
+    hand, cube, cand = allegro_cube_grasp
+    return hand, cube, cached_sdf_grid(cube.mesh, cube.mesh_hash, padding=0.025), cand
+
+
+def _contact_mask(hand, cand) -> np.ndarray:
+    names = {c.finger for c in cand.contacts}
+    return np.array([f.name in names for f in hand.fingers])
+
+
+def _opened(hand, hc, cand, cube):
+    """The candidate with its first contacting finger opened until its pad link stands
+    3-8 mm off the cube: (finger index, its joints, q, report)."""
+    finger = hand.finger(cand.contacts[0].finger)
+    f = hand.fingers.index(finger)
+    joints = [hand.actuated_joints.index(j) for j, s in zip(finger.joints, finger.closing) if s]
+    senses = np.array([s for s in finger.closing if s], dtype=float)
+    pad = hc.links.index(finger.pad_link)
+    q = np.array(cand.joint_positions, dtype=float)
+    for _ in range(300):  # bounded: 0.3 rad at most
+        q[joints] -= 0.001 * senses
+        q = np.clip(q, hand.lower, hand.upper)
+        report = fcl_api.object_report(hc, q, cand.wrist_in_object, cube)
+        if report.link_distance[pad] > 0.003:
+            break
+    assert 0.003 < report.link_distance[pad] < 0.008, report.link_distance[pad]
+    return f, joints, q, report
+
+
+def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
+    hand, cube, grid, cand = grasp
+    hc = fcl_api.HandCollision(hand)
+    f, joints, q, report = _opened(hand, hc, cand, cube)
+    contact = _contact_mask(hand, cand)
+    touched, moved, lost, points = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
+    assert moved[f] and not lost.any() and moved.sum() == 1
+    again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)  # exact, fresh
+    finger = hand.fingers[f]
+    rows = [i for i, link in enumerate(hc.links) if hc.shapes.finger[i] == f]
+    assert again.link_distance[hc.links.index(finger.pad_link)] <= TOUCH_REST + 1e-4
+    assert -float(np.min(again.link_distance[rows])) <= SEAT_DEPTH + 1e-4
+    changed = np.flatnonzero(np.abs(touched - q) > 1e-12)
+    assert changed.size and set(changed.tolist()) <= set(joints)
+    # closed along the closing senses, not opened
+    senses = np.array([s for s in finger.closing if s], dtype=float)
+    assert np.all((touched[joints] - q[joints]) * senses >= -1e-12)
+    # the new contact point is on the cube's surface (trimesh, exact)
+    _, distance, _ = trimesh.proximity.closest_point(cube.mesh, points[f][None])
+    assert distance[0] <= 0.001
+    assert np.isnan(points[np.arange(len(hand.fingers)) != f]).all()
+
+
+def test_pads_already_on_the_object_are_left_as_they_are(grasp):
+    hand, cube, grid, cand = grasp
+    hc = fcl_api.HandCollision(hand)
+    q = np.array(cand.joint_positions, dtype=float)
+    report = fcl_api.object_report(hc, q, cand.wrist_in_object, cube)
+    contact = _contact_mask(hand, cand)
+    pads = [hc.links.index(hand.fingers[f].pad_link) for f in np.flatnonzero(contact)]
+    assert np.all(report.link_distance[pads] <= TOUCH_GAP)  # the planner's own grasp
+    touched, moved, lost, _ = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
+    np.testing.assert_array_equal(touched, q)
+    assert not moved.any() and not lost.any()
+
+
+def test_a_finger_that_cannot_reach_the_object_is_no_contact(grasp):
+    hand, cube, grid, cand = grasp
+    hc = fcl_api.HandCollision(hand)
+    q = np.array(cand.joint_positions, dtype=float)
+    far = np.array(cand.wrist_in_object, dtype=float)
+    far[:3, 3] += 0.3 * far[:3, 3] / np.linalg.norm(far[:3, 3])  # 30 cm farther out
+    report = fcl_api.object_report(hc, q, far, cube)
+    contact = _contact_mask(hand, cand)
+    touched, moved, lost, _ = touch_pads(hc, hand, q, far, cube, grid, report, contact)
+    np.testing.assert_array_equal(touched, q)
+    assert not moved.any()
+    np.testing.assert_array_equal(lost, contact)
