@@ -174,7 +174,8 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
                                 model.settings.tolerance)
         decoded.q[0] = q
         decoded.closed[0, model.layout.joints] = q
-    q = _touch(model, c, fcl_api, hc, q, root, options, obj)
+    if c.fcl.legal:  # (a grasp refused at the object stays refused)
+        q = _touch(model, c, fcl_api, hc, q, root, options, obj)
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
     if settings is not None and c.forces is not None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["seat_fingers", "SEAT_DEPTH", "SEAT_TRAVEL", "SEAT_STEPS"]
+__all__ = ["seat_fingers", "finger_distance", "SEAT_DEPTH", "SEAT_TRAVEL", "SEAT_STEPS"]
 
 #: m: a seated finger's exact geometry is at most this deep in the object (the python-fcl
 #: check allows 1 mm; half of it leaves room for the mesh distance's own error).
@@ -28,18 +28,29 @@ SEAT_STEPS = 5
 PAD_MARGIN = 0.00025
 
 
-def _finger_depth(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray) -> float:
-    """The deepest penetration (m, >= 0) in the object of the collision parts ``parts`` (one
-    finger's) at posture q: python-fcl and the exact mesh distance on those parts only (a
-    whole-hand report per bisection step cost 60 ms with LEAP's meshes)."""
+def finger_distance(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray,
+                    exact_within: float | None = None) -> tuple[float, int]:
+    """The least signed distance (m) to the object of the collision parts ``parts`` (one
+    finger's) at posture q, and the part that has it: python-fcl and the exact mesh
+    distance on those parts only (a whole-hand report per bisection step cost 60 ms with
+    LEAP's meshes). ``exact_within``: as :func:`grasp_apso.geometry.any_hand_queries.object_distances`
+    (None: its :data:`~grasp_apso.geometry.any_hand_shapes.EXACT_WITHIN`)."""
     from ..geometry.any_hand_queries import object_distances
-    from ..geometry.any_hand_shapes import DECIDE_WITHIN
+    from ..geometry.any_hand_shapes import EXACT_WITHIN
 
     poses = hc.part_poses(q, root)
-    objs = hc.place(poses, parts)
+    d = object_distances(hc.shapes, hc.place(poses, parts), poses, parts, shape, None,
+                         EXACT_WITHIN if exact_within is None else exact_within)
+    k = int(np.argmin(d))
+    return float(d[k]), int(parts[k])
+
+
+def _finger_depth(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray) -> float:
+    """The deepest penetration (m, >= 0) in the object of one finger's parts at posture q."""
+    from ..geometry.any_hand_shapes import DECIDE_WITHIN
+
     # only a depth is wanted: parts apart from the object's hull keep that lower bound
-    d = object_distances(hc.shapes, objs, poses, parts, shape, None, DECIDE_WITHIN)
-    return float(max(0.0, -np.min(d)))
+    return max(0.0, -finger_distance(hc, q, root, shape, parts, DECIDE_WITHIN)[0])
 
 
 def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.ndarray, obj, report,

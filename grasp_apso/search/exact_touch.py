@@ -57,18 +57,6 @@ def _closing_joints(hand, finger) -> tuple[list[int], np.ndarray]:
     return joints, np.asarray(limits, dtype=float)
 
 
-def _finger_gap(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray) -> tuple[float, int]:
-    """The least signed distance (m) of the finger's collision parts to the object at q
-    and the part that has it (exact where within the exact band, see
-    :func:`grasp_apso.geometry.any_hand_queries.object_distances`)."""
-    from ..geometry.any_hand_queries import object_distances
-
-    poses = hc.part_poses(q, root)
-    d = object_distances(hc.shapes, hc.place(poses, parts), poses, parts, shape, None)
-    k = int(np.argmin(d))
-    return float(d[k]), int(parts[k])
-
-
 def _pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
     """The least distance (m) of the pad body's collision surface to the object and the
     point (3,) object frame that has it: the parts' surface samples
@@ -77,12 +65,11 @@ def _pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -
     mesh fingertip takes milliseconds; the rest is then checked exactly)."""
     from ..geometry.any_hand_queries import to_frame
 
-    links = hc.hand.link_transforms_batch(q[None])[0][hc.shapes.link_rows]
+    poses = hc.part_poses(q, root)
     best, point = np.inf, None
     for k in parts:
         samples, inflate = hc.shapes.samples[k]
-        pose = root @ links[hc.shapes.part_link[k]] @ hc.shapes.origins[k]
-        pts = to_frame(pose, samples)
+        pts = to_frame(poses[k], samples)
         d = grid.distance(pts) - inflate
         i = int(np.argmin(d))
         if d[i] < best:
@@ -119,7 +106,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
     """
     from ..geometry.any_hand_shapes import object_shape
     from ..geometry.any_hand_tables import hand_tables
-    from .exact_seat import SEAT_DEPTH
+    from .exact_seat import SEAT_DEPTH, finger_distance
 
     tables = hand_tables(hand)  # cached per hand
 
@@ -175,7 +162,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
                     hi = mid
                 else:
                     lo = mid
-            d, part = _finger_gap(hc, at(hi), root, shape, parts)
+            d, part = finger_distance(hc, at(hi), root, shape, parts)
             # resting on the pad, no deeper than a seated finger; another link nearer is no pad contact
             found = d >= -SEAT_DEPTH and part in pad_parts
         if found:
