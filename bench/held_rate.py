@@ -106,7 +106,10 @@ def hand_path(spec: str) -> Path | None:
     import hand_files  # noqa: PLC0415 -- the test hands (installed wheels / written here)
     if spec == "allegro_like":
         import tempfile
-        return hand_files.write_allegro_like(Path(tempfile.gettempdir()) / "held_rate_hands", coupled=False)
+        # one folder per process: the workers write the hand at once, and one could read
+        # another's half-written mesh
+        return hand_files.write_allegro_like(Path(tempfile.gettempdir()) / f"held_rate_hands_{os.getpid()}",
+                                             coupled=False)
     if spec in hand_files.HANDS:
         return hand_files.installed_hand(spec)
     path = Path(spec)

@@ -18,7 +18,7 @@ import pytest
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.scene import Scene
-from grasp_apso.quality.closing import FLOOR, closing_forces, squeeze_toward_forces
+from grasp_apso.quality.closing import CONE_SHARE, FLOOR, balanced_forces, closing_forces, squeeze_toward_forces
 from grasp_apso.quality.robustness import robust_epsilon
 from grasp_apso.search.any_hand_select import MAX_IMBALANCE
 from grasp_apso.search.options import PlanOptions
@@ -55,6 +55,40 @@ def test_offset_pair_leaves_a_torque():
     assert imbalance > 0.2
 
 
+def _tilted_pair(degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two contacts on a 3 cm circle, ``180 - degrees`` apart: their normal forces miss
+    each other by ``degrees``."""
+    a = np.radians([0.0, 180.0 - degrees])
+    points = 0.03 * np.stack([np.cos(a), np.sin(a), np.zeros(2)], axis=1)
+    return points, points / 0.03
+
+
+def test_friction_balances_a_pair_the_normal_forces_cannot():
+    points, normals = _tilted_pair(20.0)  # 10 degrees each side: inside the narrowed cone (16.7 degrees)
+    assert closing_forces(points, normals, np.zeros(3), 0.03, mean_force=4.0)[1] > 0.1
+    forces, imbalance = balanced_forces(points, normals, np.zeros(3), 0.03, mu=0.5, mean_force=4.0)
+    # (the tangential parts are weighed against the balance: nearly, not exactly, zero)
+    assert imbalance < 0.01
+    # the net wrench recomputed from the returned vectors, independently of the solver's rows
+    assert np.linalg.norm(forces.sum(axis=0)) < 0.01 * 8.0
+    assert np.linalg.norm(np.cross(points, forces).sum(axis=0)) < 1e-8
+    normal = np.einsum("ij,ij->i", forces, -normals)
+    tangential = np.linalg.norm(forces + normal[:, None] * normals, axis=1)
+    assert normal.mean() == pytest.approx(4.0, rel=0.01)
+    assert np.all(tangential <= CONE_SHARE * 0.5 * normal + 1e-9)  # each inside its narrowed cone
+
+
+def test_friction_is_used_only_as_the_balance_needs_it():
+    forces, imbalance = balanced_forces(*_tilted_pair(0.0), np.zeros(3), 0.03, mu=0.5, mean_force=4.0)
+    assert imbalance < 1e-9
+    assert forces == pytest.approx(np.array([[-4.0, 0.0, 0.0], [4.0, 0.0, 0.0]]), abs=1e-6)  # along the normals
+
+
+def test_friction_cannot_balance_a_pair_beyond_the_cone():
+    points, normals = _tilted_pair(60.0)  # 30 degrees each side: outside even the full cone (26.6)
+    assert balanced_forces(points, normals, np.zeros(3), 0.03, mu=0.5, mean_force=4.0)[1] > 0.05
+
+
 @pytest.fixture(scope="module")
 def allegro(tmp_path_factory):
     return load_hand(write_allegro_like(tmp_path_factory.mktemp("a"), "none"), spheres=False)
@@ -80,6 +114,9 @@ def test_squeeze_pushes_each_pad_into_the_surface(allegro):
         alone = squeeze_toward_forces(hand, q, fingers[f:f + 1], pads[f:f + 1], normals[f:f + 1], [1.0], kp)
         assert np.allclose(alone[others], q[others])
     assert np.all(squeezed >= np.asarray(hand.lower) - 1e-12) and np.all(squeezed <= np.asarray(hand.upper) + 1e-12)
+    # the same forces given as vectors along -n squeeze the same
+    vectors = squeeze_toward_forces(hand, q, fingers, pads, normals, -1.0 * normals, kp)
+    assert np.allclose(vectors, squeezed)
 
 
 @pytest.fixture(scope="module")
@@ -173,3 +210,22 @@ def test_opened_pre_grasp_moves_closing_joints_to_their_opening_limits(allegro):
             j = hand.actuated_joints.index(joint)
             expected = q[j] if sense == 0 else (hand.lower[j] if sense > 0 else hand.upper[j])
             assert wide[j] == pytest.approx(expected), joint
+
+
+def test_hold_score_orders_fragile_grasps_by_epsilon_not_fitness():
+    from grasp_apso.search.any_hand_select import AnyChecked, hold_score
+
+    def checked(fitness, epsilon, robust, imbalance, closure=True):
+        return AnyChecked(None, fitness, epsilon, closure, True, True, 0.01, None, imbalance=imbalance,
+                          robust_epsilon=robust)
+
+    # The Allegro hand's bowl (seed 0): no grasp robust; the fittest had the smallest epsilon
+    # and dropped, the next ones held.
+    fragile = [checked(0.610, 0.009, 0.0, 0.58), checked(0.585, 0.048, 0.0, 0.30), checked(0.584, 0.019, 0.0, 0.32)]
+    assert list(np.argsort(-hold_score(fragile))) == [1, 2, 0]
+    # robust grasps keep their robust epsilon; without force closure the score is the fitness share only
+    robust = [checked(0.9, 0.2, 0.01, 0.1), checked(0.5, 0.05, 0.04, 0.1)]
+    assert list(np.argsort(-hold_score(robust))) == [1, 0]
+    none = hold_score([checked(0.9, 0.3, 0.0, 0.0, closure=False)])
+    assert none[0] == pytest.approx(0.01 * 0.9)
+

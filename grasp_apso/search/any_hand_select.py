@@ -17,8 +17,9 @@ the grasps are ordered by their hold score (:func:`hold_score`: robust epsilon t
 minus the imbalance), not by the fitness. Up to :data:`SPARE` (without ``simulate``
 :data:`DEFAULT_SPARE`) times ``max_grasps`` distinct grasps are verified so that balanced
 ones can be found, and the best ``max_grasps`` returned. Each candidate's squeeze exerts
-those balanced forces at its pads
-(``q + J^T f / kp``, :func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
+contact forces balanced with friction at its pads (force vectors inside narrowed friction
+cones, :func:`grasp_apso.quality.closing.balanced_forces`; ``q + J^T f / kp``,
+:func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
 ``simulate`` the verified grasps are checked in MuJoCo
 (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
 held or all were tried.
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PlanningError, SimulationError
-from ..quality.closing import closing_forces, squeeze_toward_forces
+from ..quality.closing import balanced_forces, closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .any_hand_pads import final_decodings, pads_on
@@ -99,7 +100,7 @@ class AnyChecked:
     imbalance: float = 1.0
     squeeze: np.ndarray | None = None
     robust_epsilon: float = 0.0
-    forces: np.ndarray | None = None   # (contacts,) N, the squeeze's contact forces
+    forces: np.ndarray | None = None   # (contacts,) N normal closing forces; (contacts, 3) N once squeezed
     closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
 
     @property
@@ -179,7 +180,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
     if settings is not None and c.forces is not None:
-        c.squeeze = _squeeze(model, decoded, obj, c.forces, settings, c.fcl)
+        c.squeeze, c.forces = _squeeze(model, decoded, obj, options.friction, settings, c.fcl)
     if scene is not None and c.valid:  # (an invalid grasp is refused whatever its approach)
         root_plan = pose @ root
         approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
@@ -273,8 +274,10 @@ def _closing(model, decoded, obj) -> tuple[float, np.ndarray | None]:
     return imbalance, forces
 
 
-def _squeeze(model, decoded, obj, forces, settings, report=None) -> np.ndarray:
-    """The squeeze of one decoded grasp exerting ``forces`` at its contacts; with the
+def _squeeze(model, decoded, obj, mu: float, settings, report=None) -> tuple[np.ndarray, np.ndarray]:
+    """The squeeze of one decoded grasp and the contact forces (contacts, 3) N it exerts:
+    the friction-balanced forces of mean normal part ``squeeze_force``
+    (:func:`grasp_apso.quality.closing.balanced_forces`, friction ``mu``); with the
     python-fcl ``report`` the pads' exact distances to the object are taken up first."""
     fingers = np.flatnonzero(decoded.contact[0])
     points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
@@ -287,8 +290,11 @@ def _squeeze(model, decoded, obj, forces, settings, report=None) -> np.ndarray:
         gaps = np.array([float(report.link_distance[links.index(model.hand.fingers[f].pad_link)])
                          if model.hand.fingers[f].pad_link in links else 0.0 for f in fingers])
         gaps = np.where(np.isfinite(gaps), gaps, 0.0)
-    return squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root, forces, settings.kp,
-                                 settings.max_torque, gaps=gaps)
+    forces, _ = balanced_forces(points, normals, np.asarray(obj.center_of_mass, float),
+                                float(obj.characteristic_radius), mu, settings.squeeze_force)
+    squeeze = squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root,
+                                    forces @ inv[:3, :3].T, settings.kp, settings.max_torque, gaps=gaps)
+    return squeeze, forces
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tuple[list[AnyChecked], str]:
@@ -342,7 +348,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
         nonlocal first, rejected
         checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
         if checked.squeeze is None:  # not squeezed by the verification (no python-fcl)
-            checked.squeeze = _squeeze(model, checked.decoded, obj, checked.forces, _sim_settings())
+            checked.squeeze, checked.forces = _squeeze(model, checked.decoded, obj, options.friction, _sim_settings())
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
@@ -417,7 +423,12 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
 def hold_score(checked: list[AnyChecked]) -> np.ndarray:
     """The order of the verified grasps within a ranking class (N,) in [0, 1):
     ``(1 - FITNESS_SHARE) * h / (h + HOLD_SCALE) + FITNESS_SHARE * fitness``, ``h`` the
-    robust epsilon (0 without force closure) times one minus the closing imbalance.
+    robust epsilon times one minus the closing imbalance. A force-closure grasp without a
+    robust epsilon counts with its epsilon instead (0 without force closure): such grasps
+    are returned only when no robust one was found (:func:`select_any`), and the fitness
+    alone would then order them (on the Allegro hand's bowl, seed 0, the fittest of five
+    such grasps dropped the bowl, with epsilon 0.009 and imbalance 0.58; three with epsilon
+    0.02-0.05 and imbalance 0.3 held).
 
     Measured (``bench/held_rate.py``, 21 objects on a table, seeds 0-2, every one of up to
     15 verified grasps per plan simulated in MuJoCo): in pairs of a held and a dropped
@@ -427,7 +438,8 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
     45 -> 47 of 63 plans (Allegro-like; 49 had a grasp that held), 44 -> 47 (Shadow; 47).
     """
     fitness = np.clip(np.nan_to_num(np.array([c.fitness for c in checked], float), nan=0.0, neginf=0.0), 0.0, 1.0)
-    h = np.array([max(c.robust_epsilon, 0.0) * max(1.0 - c.imbalance, 0.0) for c in checked], float)
+    h = np.array([(c.robust_epsilon if c.robust_epsilon > 0.0 else max(c.epsilon, 0.0) * c.force_closure)
+                  * max(1.0 - c.imbalance, 0.0) for c in checked], float)
     return (1.0 - FITNESS_SHARE) * h / (h + HOLD_SCALE) + FITNESS_SHARE * fitness
 
 
