@@ -65,6 +65,9 @@ __all__ = ["GraspPlannerNode", "PARAMETERS", "PARAMETER_NAMES", "REQUEST_HISTORY
 NODE_NAME = "grasp_apso"
 #: History depth of the service and action servers (requests held before they are read).
 REQUEST_HISTORY = 1000
+#: Cancelled goal ids kept for an execute callback yet to come (a cancel of a goal that has
+#: just finished also lands here: bounded, oldest dropped first).
+EARLY_CANCELS = 256
 #: Period of the departed-client watch, s (two sightings in a row cancel: within 1 s).
 WATCH_PERIOD = 0.2
 _REQUESTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REQUEST_HISTORY,
@@ -81,6 +84,10 @@ class GraspPlannerNode(Node):
         self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
                              database=self.parameters.database, hand=self.parameters.planning_hand.hand)
         self._goals: dict[bytes, Job] = {}
+        # Goals cancelled before their execute callback registered a job (the cancel
+        # callback found none): ids, oldest first, at most EARLY_CANCELS.
+        self._early_cancels: dict[bytes, None] = {}
+        self._goals_lock = threading.Lock()
         self._absent: dict[RequestKind, int] = {kind: 0 for kind in RequestKind}
         self.get_logger().info("loading the planner's compiled kernels ...")
         seconds = self.worker.warm_up()
@@ -162,18 +169,29 @@ class GraspPlannerNode(Node):
             return request_id, Outcome(False, internal_error_message("the request's check", request_id)), header
         header = reply_header(plan_request)
         job = Job(plan_request, goal_handle=goal_handle)
+        early = False
         if goal_handle is None:
             busy = self.worker.reserve()
             if busy:
                 self.get_logger().info(f"request {request_id}: {busy}")
                 return request_id, Outcome(False, busy), header
         else:
-            self._goals[bytes(goal_handle.goal_id.uuid)] = job
+            key = bytes(goal_handle.goal_id.uuid)
+            with self._goals_lock:
+                self._goals[key] = job
+                early = key in self._early_cancels
+                self._early_cancels.pop(key, None)
         try:
-            outcome = await self.worker.submit(job, self.executor)
+            future = self.worker.submit(job, self.executor)
+            if goal_handle is not None and (early or goal_handle.is_cancel_requested):
+                # cancelled between the goal's acceptance and this registration: the cancel
+                # callback found no job, so the goal would otherwise wait its turn
+                self.worker.cancel(job)
+            outcome = await future
         finally:
             if goal_handle is not None:
-                self._goals.pop(bytes(goal_handle.goal_id.uuid), None)
+                with self._goals_lock:
+                    self._goals.pop(bytes(goal_handle.goal_id.uuid), None)
         return request_id, outcome, header
 
     async def _answered(self, req: Any, msg: Any, goal_handle: Any = None) -> tuple[Any, Outcome]:
@@ -198,8 +216,15 @@ class GraspPlannerNode(Node):
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
-        """Cancel a goal: at once when it is queued, within one iteration when it plans."""
-        job = self._goals.get(bytes(goal_handle.goal_id.uuid))
+        """Cancel a goal: at once when it is queued, within one iteration when it plans;
+        a goal whose execute callback has not registered its job yet is cancelled there."""
+        key = bytes(goal_handle.goal_id.uuid)
+        with self._goals_lock:
+            job = self._goals.get(key)
+            if job is None:
+                self._early_cancels[key] = None
+                while len(self._early_cancels) > EARLY_CANCELS:
+                    self._early_cancels.pop(next(iter(self._early_cancels)))
         if job is not None:
             self.worker.cancel(job)
         return CancelResponse.ACCEPT
