@@ -10,7 +10,7 @@ per node tunable (:mod:`grasp_apso.ros.parameters`, ``config/grasp_apso.yaml``).
 (``grasp_source`` "database"; :mod:`.database_answers`).
 
 This module builds the node and holds its callbacks (parameters: :mod:`.parameters`,
-parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`). It loads
+parsing: :mod:`.requests`, queue, threads, time bound, cancel: :mod:`.worker`, :mod:`.goals`). It loads
 the planner's compiled kernels before it logs "ready". The callbacks are coroutines in a
 ``ReentrantCallbackGroup``: they check a request, reserve a place (or answer "busy"), hand
 the job to the worker and ``await`` its Future, so the executor keeps serving while plans
@@ -50,9 +50,10 @@ from grasp_apso_interfaces.srv import PlanGrasp
 
 from ..errors import GraspApsoError
 from .conversions import fill_result, progress_msg, reply_header
+from .goals import GoalRegistry
+from .job import Job
 from .markers import grasp_markers
 from .parameters import PARAMETER_NAMES, PARAMETERS, NodeParameters
-from .job import Job
 from .plan_request import RequestKind
 from .replies import Outcome, internal_error_message
 from .requests import parse_request
@@ -65,9 +66,6 @@ __all__ = ["GraspPlannerNode", "PARAMETERS", "PARAMETER_NAMES", "REQUEST_HISTORY
 NODE_NAME = "grasp_apso"
 #: History depth of the service and action servers (requests held before they are read).
 REQUEST_HISTORY = 1000
-#: Cancelled goal ids kept for an execute callback yet to come (a cancel of a goal that has
-#: just finished also lands here: bounded, oldest dropped first).
-EARLY_CANCELS = 256
 #: Period of the departed-client watch, s (two sightings in a row cancel: within 1 s).
 WATCH_PERIOD = 0.2
 _REQUESTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REQUEST_HISTORY,
@@ -83,11 +81,7 @@ class GraspPlannerNode(Node):
         settings = self.parameters.settings
         self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
                              database=self.parameters.database, hand=self.parameters.planning_hand.hand)
-        self._goals: dict[bytes, Job] = {}
-        # Goals cancelled before their execute callback registered a job (the cancel
-        # callback found none): ids, oldest first, at most EARLY_CANCELS.
-        self._early_cancels: dict[bytes, None] = {}
-        self._goals_lock = threading.Lock()
+        self._goals = GoalRegistry()
         self._absent: dict[RequestKind, int] = {kind: 0 for kind in RequestKind}
         self.get_logger().info("loading the planner's compiled kernels ...")
         seconds = self.worker.warm_up()
@@ -169,29 +163,16 @@ class GraspPlannerNode(Node):
             return request_id, Outcome(False, internal_error_message("the request's check", request_id)), header
         header = reply_header(plan_request)
         job = Job(plan_request, goal_handle=goal_handle)
-        early = False
-        if goal_handle is None:
-            busy = self.worker.reserve()
-            if busy:
-                self.get_logger().info(f"request {request_id}: {busy}")
-                return request_id, Outcome(False, busy), header
-        else:
-            key = bytes(goal_handle.goal_id.uuid)
-            with self._goals_lock:
-                self._goals[key] = job
-                early = key in self._early_cancels
-                self._early_cancels.pop(key, None)
+        if goal_handle is None and (busy := self.worker.reserve()):  # (a goal's place: goal_callback)
+            self.get_logger().info(f"request {request_id}: {busy}")
+            return request_id, Outcome(False, busy), header
         try:
             future = self.worker.submit(job, self.executor)
-            if goal_handle is not None and (early or goal_handle.is_cancel_requested):
-                # cancelled between the goal's acceptance and this registration: the cancel
-                # callback found no job, so the goal would otherwise wait its turn
-                self.worker.cancel(job)
+            if self._goals.register(goal_handle, job):
+                self.worker.cancel(job)  # cancelled before its job was registered (goals.py)
             outcome = await future
         finally:
-            if goal_handle is not None:
-                with self._goals_lock:
-                    self._goals.pop(bytes(goal_handle.goal_id.uuid), None)
+            self._goals.remove(goal_handle)
         return request_id, outcome, header
 
     async def _answered(self, req: Any, msg: Any, goal_handle: Any = None) -> tuple[Any, Outcome]:
@@ -216,15 +197,8 @@ class GraspPlannerNode(Node):
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle: Any) -> CancelResponse:
-        """Cancel a goal: at once when it is queued, within one iteration when it plans;
-        a goal whose execute callback has not registered its job yet is cancelled there."""
-        key = bytes(goal_handle.goal_id.uuid)
-        with self._goals_lock:
-            job = self._goals.get(key)
-            if job is None:
-                self._early_cancels[key] = None
-                while len(self._early_cancels) > EARLY_CANCELS:
-                    self._early_cancels.pop(next(iter(self._early_cancels)))
+        """Cancel a goal: at once when it is queued, within one iteration when it plans."""
+        job = self._goals.to_cancel(goal_handle)
         if job is not None:
             self.worker.cancel(job)
         return CancelResponse.ACCEPT
