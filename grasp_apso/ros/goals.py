@@ -40,7 +40,8 @@ class GoalRegistry:
         key = _key(goal_handle)
         with self._lock:
             self._jobs[key] = job
-            early = self._early.pop(key, False) is None
+            early = key in self._early
+            self._early.pop(key, None)
         return early or bool(goal_handle.is_cancel_requested)
 
     def to_cancel(self, goal_handle) -> Job | None:

@@ -100,7 +100,7 @@ class AnyChecked:
     imbalance: float = 1.0
     squeeze: np.ndarray | None = None
     robust_epsilon: float = 0.0
-    forces: np.ndarray | None = None   # (contacts,) N normal closing forces; (contacts, 3) N once squeezed
+    forces: np.ndarray | None = None   # (contacts, 3) N, the squeeze's contact forces (None: uniform squeeze)
     closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
 
     @property
@@ -128,10 +128,10 @@ def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    imbalance, forces = _closing(model, decoded, obj)
-    squeeze = squeeze_posture(model, decoded.q[0]) if forces is None else None
+    imbalance, balanced = _closing(model, decoded, obj)
+    squeeze = None if balanced else squeeze_posture(model, decoded.q[0])
     c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
-                   None, "", imbalance, squeeze, 0.0, forces)
+                   None, "", imbalance, squeeze, 0.0)
     if imbalance <= MAX_IMBALANCE:
         _closure(c, options, obj)
     return c
@@ -179,7 +179,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
         q = _touch(model, c, fcl_api, hc, q, root, options, obj)
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
-    if settings is not None and c.forces is not None:
+    if settings is not None and c.squeeze is None:
         c.squeeze, c.forces = _squeeze(model, decoded, obj, options.friction, settings, c.fcl)
     if scene is not None and c.valid:  # (an invalid grasp is refused whatever its approach)
         root_plan = pose @ root
@@ -222,11 +222,10 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     decoded.contact[0, lost] = False
     c.fcl = fcl_api.object_report(hc, q_new, root, obj)
     c.valid = c.valid and int(decoded.contact[0].sum()) >= 2
-    c.imbalance, c.forces = _closing(model, decoded, obj)
+    c.imbalance, balanced = _closing(model, decoded, obj)
     c.epsilon, c.force_closure, c.robust_epsilon = 0.0, False, 0.0
     _closure(c, options, obj)
-    if c.forces is None:
-        c.squeeze = squeeze_posture(model, q_new)
+    c.squeeze = None if balanced else squeeze_posture(model, q_new)
     return q_new
 
 
@@ -259,19 +258,20 @@ def _sim_settings():
     return settings.SimulationSettings() if settings is not None else None
 
 
-def _closing(model, decoded, obj) -> tuple[float, np.ndarray | None]:
-    """The closing imbalance of one decoded grasp and the contact forces (N, newtons) its
-    squeeze exerts: the balanced forces at the pads (mean ``squeeze_force``); with fewer
-    than two contacts (the uniform squeeze) imbalance 1 and forces None."""
+def _closing(model, decoded, obj) -> tuple[float, bool]:
+    """The closing imbalance of one decoded grasp (normal forces of mean ``squeeze_force``,
+    :func:`grasp_apso.quality.closing.closing_forces`) and whether its squeeze aims at
+    balanced contact forces (:func:`_squeeze`); with fewer than two contacts, or without
+    the simulation's settings, imbalance 1 and the uniform squeeze."""
     mask = decoded.contact[0]
     settings = _sim_settings()
     if mask.sum() < 2 or settings is None:
-        return 1.0, None
+        return 1.0, False
     fingers = np.flatnonzero(mask)
     points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
-    forces, imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
-                                       float(obj.characteristic_radius), settings.squeeze_force)
-    return imbalance, forces
+    imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
+                               float(obj.characteristic_radius), settings.squeeze_force)[1]
+    return imbalance, True
 
 
 def _squeeze(model, decoded, obj, mu: float, settings, report=None) -> tuple[np.ndarray, np.ndarray]:
