@@ -200,6 +200,7 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
     "hand_model": CacheLimit(16, 1024 * _MB),
     "hand_tables": CacheLimit(16, 256 * _MB),    # geometry.any_hand_tables: hand source hash
+    "grg_layout": CacheLimit(16, 16 * _MB),      # search.any_hand_grg: hand source hash
     "hand_drawing": CacheLimit(8, 200 * _MB),    # presentation.hand_geometry: (hand, decimation)    # model.hands.load: (description + config hash, folder, ...)
     "hand_collision": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: (hand source hash, geometry digest)
     "object_distance": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)

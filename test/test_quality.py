@@ -549,7 +549,7 @@ def test_cheap_outside_test_never_rejects_a_force_closure_grasp():
             origin_inside = bool(np.all(eq[:, -1] < 0.0))
         except Exception:  # flat wrench set: the origin is not strictly inside
             origin_inside = False
-        may = measures._origin_may_be_inside(wrenches)
+        may = measures.origin_may_be_inside(wrenches)
         if origin_inside:
             assert may
         else:

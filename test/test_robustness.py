@@ -118,3 +118,33 @@ def test_deterministic_and_checked(cube):
         normal_uncertainty(cube, points, radius=0.0)
     with pytest.raises(ValueError):
         robust_epsilon(cube, points, normals, MU, np.full(4, -0.1))
+
+
+def test_the_quick_outside_test_leaves_every_value_as_the_hull_gives_it(cube):
+    """Most fragile grasps are refused by the least-squares test before qhull: the values
+    are those of the wrench hull itself (qhull on the shrunk cones), zero or not."""
+    from scipy.spatial import ConvexHull
+
+    from grasp_apso.quality.robustness import _shrunk_cone_wrenches
+
+    rng = np.random.default_rng(11)
+    com, scale = np.asarray(cube.center_of_mass, float), float(cube.characteristic_radius)
+    zeros = positives = 0
+    for _ in range(60):
+        k = int(rng.integers(3, 5))
+        normals = rng.normal(size=(k, 3))
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        points = H * normals
+        unc = rng.uniform(0.0, 0.4, k)
+        value = robust_epsilon(cube, points, normals, MU, unc)
+        beta = math.atan(MU) - unc
+        keep = beta >= 0.0
+        expected = 0.0
+        if keep.sum() >= 2:
+            w = _shrunk_cone_wrenches(points[keep], normals[keep], com, MU, beta[keep], 8, scale)
+            offsets = ConvexHull(w).equations[:, -1]
+            expected = float(-offsets.max()) if np.all(offsets < 0.0) and -offsets.max() > 1e-9 else 0.0
+        assert value == pytest.approx(expected, abs=1e-12)
+        zeros += value == 0.0
+        positives += value > 0.0
+    assert zeros >= 10 and positives >= 10  # both kinds were drawn

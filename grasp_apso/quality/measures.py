@@ -70,6 +70,7 @@ __all__ = [
     "force_balance_residual",
     "epsilon_quality",
     "epsilon_quality_batch",
+    "origin_may_be_inside",
     "FORCE_CLOSURE_EPS",
     "COINCIDENT_RTOL",
     "COINCIDENT_ATOL",
@@ -327,12 +328,12 @@ def _cone_wrenches(
     return np.concatenate([forces, torques], axis=-1).reshape(-1, 6)
 
 
-#: Least distance-like residual (dimensionless) of :func:`_origin_may_be_inside` that
+#: Least distance-like residual (dimensionless) of :func:`origin_may_be_inside` that
 #: proves the origin outside the wrench hull; a round-off residual is about 1e-15.
 OUTSIDE_RESIDUAL = 1e-9
 
 
-def _origin_may_be_inside(wrenches: NDArray[np.float64]) -> bool:
+def origin_may_be_inside(wrenches: NDArray[np.float64]) -> bool:
     """False when the origin is certainly outside the convex hull of ``wrenches`` (n, 6).
 
     The cheap test before qhull (about 25 us against several ms for 40 wrenches in 6-D):
@@ -440,7 +441,7 @@ def epsilon_quality(
         return 0.0, False
 
     wrenches = _cone_wrenches(pts, nrm, c, float(mu), edges_i, scale)
-    if not _origin_may_be_inside(wrenches):
+    if not origin_may_be_inside(wrenches):
         return 0.0, False  # the hull below would find the origin outside too
     try:
         hull = ConvexHull(wrenches)

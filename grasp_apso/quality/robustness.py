@@ -32,7 +32,7 @@ import trimesh
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull
 
-from .measures import FORCE_CLOSURE_EPS, QhullError
+from .measures import FORCE_CLOSURE_EPS, QhullError, origin_may_be_inside
 
 __all__ = ["normal_uncertainty", "robust_epsilon", "robustness_score", "DEFAULT_RADIUS",
            "BACK_FACE_COS"]
@@ -209,6 +209,8 @@ def robust_epsilon(
     com = np.asarray(obj.center_of_mass, dtype=float)
     wrenches = _shrunk_cone_wrenches(pts[keep], nrm[keep] / length[keep, None], com, float(mu),
                                      beta[keep], int(edges), scale)
+    if not origin_may_be_inside(wrenches):
+        return 0.0  # qhull would find the origin outside too (most fragile grasps stop here)
     try:
         hull = ConvexHull(wrenches)
     except (QhullError, ValueError):

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..cache import cached
 from ..errors import PlanningError
 from ..geometry.any_hand_decoder import AnyHandModel, decode_any
 from ..model.hand import rotation_to_wrist_angles
@@ -74,6 +75,15 @@ def _owned(tables) -> np.ndarray | None:
     return None if (owned.sum(axis=0) > 1).any() else owned
 
 
+def _layout(model: AnyHandModel) -> tuple[tuple[np.ndarray, ...], np.ndarray | None]:
+    """The hand's draws (:func:`_draws`) and owned joints (:func:`_owned`), built once per
+    hand: they depend on its tables only, and GRG asks for them on every batch (measured:
+    about 3 % of a Shadow plan when built each time)."""
+    t = model.tables
+    return cached("grg_layout", model.hand.source_hash,
+                  lambda: (_draws(t, tuple(f.is_thumb for f in model.hand.fingers)), _owned(t)))
+
+
 def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: float) -> np.ndarray:
     """Pre-shapes (n, n_joints) within the limits (see the module docstring).
 
@@ -83,7 +93,7 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
     t = model.tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
     q = rng.uniform(lo, hi, (n, len(lo)))
-    spread, spread_j, half, closing, closing_j, target = _draws(t, tuple(f.is_thumb for f in model.hand.fingers))
+    spread, spread_j, half, closing, closing_j, target = _layout(model)[0]
     u = rng.random((len(spread) + len(closing), n))
     if len(spread):
         offset = (-half)[:, None] + (half - (-half))[:, None] * u[spread]
@@ -142,7 +152,7 @@ class AnyHandGenerator:
             fraction *= REGENERATE_FACTOR
             fresh = _preshape(self.model, len(rows), self.rng, fraction)
             other = _preshape(self.model, len(rows), self.rng, OPEN_FRACTION)
-            owned = _owned(t)
+            owned = _layout(self.model)[1]
             if owned is not None:  # all fingers at once (bad and retry exclude each other)
                 joints = x[rows, t.layout.joints]
                 joints = np.where((bad[:, :, None] & owned[None]).any(axis=1), fresh, joints)
