@@ -71,6 +71,7 @@ __all__ = [
     "epsilon_quality",
     "epsilon_quality_batch",
     "origin_may_be_inside",
+    "hull_epsilon",
     "FORCE_CLOSURE_EPS",
     "COINCIDENT_RTOL",
     "COINCIDENT_ATOL",
@@ -440,20 +441,26 @@ def epsilon_quality(
     if not scale > 0.0:  # every contact at the com: no torque at all
         return 0.0, False
 
-    wrenches = _cone_wrenches(pts, nrm, c, float(mu), edges_i, scale)
+    eps = hull_epsilon(_cone_wrenches(pts, nrm, c, float(mu), edges_i, scale))
+    return eps, eps > 0.0
+
+
+def hull_epsilon(wrenches: NDArray[np.float64]) -> float:
+    """Radius of the largest origin-centred ball inside the convex hull of ``wrenches``
+    (n, 6): the smallest distance from the origin to a facet hyperplane when the origin is
+    strictly inside, else 0.0 (also at or below :data:`FORCE_CLOSURE_EPS`). The quick test
+    (:func:`origin_may_be_inside`) first; qhull only when the origin may be inside."""
     if not origin_may_be_inside(wrenches):
-        return 0.0, False  # the hull below would find the origin outside too
+        return 0.0  # the hull would find the origin outside too
     try:
         hull = ConvexHull(wrenches)
     except (QhullError, ValueError):
-        return 0.0, False  # lower-dimensional wrench set: cannot contain a 6-D ball
+        return 0.0  # lower-dimensional wrench set: cannot contain a 6-D ball
     offsets = hull.equations[:, -1]  # unit facet normals; inside means n.x + offset <= 0
     if not np.all(offsets < 0.0):
-        return 0.0, False
+        return 0.0
     eps = float(-offsets.max())
-    if eps <= FORCE_CLOSURE_EPS:
-        return 0.0, False
-    return eps, True
+    return eps if eps > FORCE_CLOSURE_EPS else 0.0
 
 
 def epsilon_quality_batch(

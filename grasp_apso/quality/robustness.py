@@ -30,9 +30,8 @@ import math
 import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import ConvexHull
 
-from .measures import FORCE_CLOSURE_EPS, QhullError, origin_may_be_inside
+from .measures import hull_epsilon
 
 __all__ = ["normal_uncertainty", "robust_epsilon", "robustness_score", "DEFAULT_RADIUS",
            "BACK_FACE_COS"]
@@ -207,19 +206,9 @@ def robust_epsilon(
         return 0.0
     scale = float(obj.characteristic_radius if torque_scale is None else torque_scale)
     com = np.asarray(obj.center_of_mass, dtype=float)
-    wrenches = _shrunk_cone_wrenches(pts[keep], nrm[keep] / length[keep, None], com, float(mu),
-                                     beta[keep], int(edges), scale)
-    if not origin_may_be_inside(wrenches):
-        return 0.0  # qhull would find the origin outside too (most fragile grasps stop here)
-    try:
-        hull = ConvexHull(wrenches)
-    except (QhullError, ValueError):
-        return 0.0
-    offsets = hull.equations[:, -1]
-    if not np.all(offsets < 0.0):
-        return 0.0
-    eps = float(-offsets.max())
-    return eps if eps > FORCE_CLOSURE_EPS else 0.0
+    # most fragile grasps stop at hull_epsilon's quick outside test, before qhull
+    return hull_epsilon(_shrunk_cone_wrenches(pts[keep], nrm[keep] / length[keep, None], com, float(mu),
+                                              beta[keep], int(edges), scale))
 
 
 def robustness_score(obj, points: ArrayLike, normals: ArrayLike, mu: float = 0.5,
