@@ -1,5 +1,6 @@
-"""Guided Random Generation of a general hand (:mod:`grasp_apso.search.any_hand_grg`): its
-draws are valid, and the hand's pre-shape layout is built once per hand, not per batch.
+"""Guided Random Generation of a general hand (:mod:`grasp_apso.search.any_hand_grg`): the
+swarm asks for a few particles per iteration, so the generator verifies its draws in a pool
+of ``POOL_BATCH`` at a time, each call taking the batch it would have drawn from the pool.
 
 Validity is checked by decoding the returned particles again (the decoder's legality and
 contact count, the property GRG promises), not by the generator's own flags.
@@ -13,6 +14,7 @@ from grasp_apso.geometry.any_hand_decoder import decode_any, with_any_scene
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.scene import Scene
+from grasp_apso.search import any_hand_grg
 from grasp_apso.search.any_hand_grg import AnyHandGenerator, _draws, _layout, _owned
 from grasp_apso.search.any_hand_planner import prepare_any_hand
 from grasp_apso.search.grg import classify_shape
@@ -39,6 +41,45 @@ def _valid(model, x: np.ndarray) -> np.ndarray:
             & (d.n_contacts >= 2))
 
 
+class CountingGenerator(AnyHandGenerator):
+    """The generator, counting its verified batches (each decodes up to five times)."""
+
+    batches = 0
+
+    def _verified(self, x):
+        self.batches += 1
+        return super()._verified(x)
+
+
+def test_small_draws_take_their_batches_from_a_verified_pool(setup):
+    model, shape = setup
+    gen = CountingGenerator(model, shape, np.random.default_rng(3))
+    first = gen.draw(60)  # the swarm's start
+    start = gen.batches
+    later = [gen.draw(6) for _ in range(20)]  # the per-iteration replacements
+    x = np.concatenate([first] + later)
+    assert x.shape == (180, model.layout.dims)
+    assert _valid(model, x).all()
+    # every draw handed out once (the pool gives away what a call takes)
+    assert len(np.unique(x, axis=0)) == len(x)
+    # 20 calls of a dozen draws or two each, verified a pool of POOL_BATCH (64) at a time:
+    # before the pool, every call verified its own batch (20 batches or more)
+    assert gen.batches - start <= 8
+
+
+def test_a_call_whose_batch_is_in_the_pool_decodes_nothing(setup):
+    model, shape = setup
+    gen = CountingGenerator(model, shape, np.random.default_rng(5))
+    gen.draw(6)  # the first call verifies a pool of POOL_BATCH and takes its batch
+    assert gen.batches == 1
+    left = len(gen._pool[0]) - gen._pool_at
+    assert left > 0
+    evaluations = gen.evaluations
+    x = gen.draw(min(6, left // 4))  # a batch of 1.5 x k / (valid share) <= left
+    assert (gen.evaluations, gen.batches) == (evaluations, 1)
+    assert _valid(model, x).all()
+
+
 def test_the_preshape_layout_is_built_once_per_hand(setup):
     model, _ = setup
     first = _layout(model)
@@ -47,12 +88,3 @@ def test_the_preshape_layout_is_built_once_per_hand(setup):
     for a, b in zip(first[0], draws):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(first[1], _owned(model.tables))
-
-
-def test_small_draws_are_valid_and_distinct(setup):
-    model, shape = setup
-    gen = AnyHandGenerator(model, shape, np.random.default_rng(3))
-    x = np.concatenate([gen.draw(60)] + [gen.draw(6) for _ in range(10)])  # start, then replacements
-    assert x.shape == (120, model.layout.dims)
-    assert _valid(model, x).all()
-    assert len(np.unique(x, axis=0)) == len(x)

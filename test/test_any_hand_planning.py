@@ -127,6 +127,28 @@ def _pad_errors(hand, result, mesh: trimesh.Trimesh) -> list[float]:
     return out
 
 
+def _pad_link_distances(hand, cand, mesh: trimesh.Trimesh) -> list[float]:
+    """|python-fcl signed distance| (m) of each contact finger's pad link (its collision
+    geometry as the file gives it) to the object's mesh, at the candidate's grasp."""
+    model = fcl.BVHModel()
+    model.beginModel(len(mesh.vertices), len(mesh.faces))
+    model.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
+    model.endModel()
+    obj = fcl.CollisionObject(model, fcl.Transform())
+    poses = hand.link_transforms(cand.joint_positions)
+    out = []
+    for contact in cand.contacts:
+        link = hand.finger(contact.finger).pad_link
+        best = np.inf
+        for geom in hand.collision[link]:
+            tf = cand.wrist_pose @ poses[link] @ geom.origin
+            part = fcl.CollisionObject(_fcl_geometry(geom), fcl.Transform(tf[:3, :3], tf[:3, 3]))
+            request = fcl.DistanceRequest(enable_signed_distance=True)
+            best = min(best, abs(fcl.distance(part, obj, request, fcl.DistanceResult())))
+        out.append(best)
+    return out
+
+
 @pytest.fixture(scope="module")
 def plans(hands):
     out = {}
@@ -170,7 +192,9 @@ def test_returned_grasps_are_sound(hands, plans, hand_name):
         for cand in result.candidates:
             if cand.valid:
                 assert cand.n_contacts >= 2
-                errors = _pad_errors(hand, cand, obj.mesh)
+                # each contact's pad on the surface: its pad sphere, or (a curved fingertip
+                # resting beside its pad point) the pad link's own collision geometry
+                errors = np.minimum(_pad_errors(hand, cand, obj.mesh), _pad_link_distances(hand, cand, obj.mesh))
                 assert max(errors) <= PAD_TOLERANCE, (obj_name, seed, cand.rank, errors)
         for cand in result.candidates:
             # The pre-grasp at the grasp's wrist pose (a DexGraspBench replay starts there):

@@ -64,8 +64,10 @@ def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
     again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)  # exact, fresh
     finger = hand.fingers[f]
     rows = [i for i, link in enumerate(hc.links) if hc.shapes.finger[i] == f]
-    assert again.link_distance[hc.links.index(finger.pad_link)] <= TOUCH_REST + 1e-4
-    assert -float(np.min(again.link_distance[rows])) <= SEAT_DEPTH + 1e-4
+    # the fingertip rests on the cube (the pad link or a link fixed to it: the Allegro-like
+    # tip is a small link on the distal), the pad link within the 2 mm
+    assert -SEAT_DEPTH - 1e-4 <= float(np.min(again.link_distance[rows])) <= TOUCH_REST + 1e-4
+    assert again.link_distance[hc.links.index(finger.pad_link)] <= PAD_TOLERANCE
     changed = np.flatnonzero(np.abs(touched - q) > 1e-12)
     assert changed.size and set(changed.tolist()) <= set(joints)
     # closed along the closing senses, not opened

@@ -40,7 +40,7 @@ from ..quality.measures import epsilon_quality
 from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .any_hand_pads import final_decodings, pads_on
 from .archive import wrists_distinct
-from .exact_seat import seat_fingers
+from .exact_seat import pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import touch_pads
 from .ranking import grasp_quality, rank_order
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -169,14 +169,15 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     decoded = c.decoded
     q, root = decoded.q[0], decoded.root[0]
     c.fcl = fcl_api.object_report(hc, q, root, obj)
+    rest = None
     if not c.fcl.legal:
         # the sphere covers let an exact mesh press a little into the object: seat it
-        q, c.fcl = seat_fingers(fcl_api, hc, model.hand, q, decoded.q_pre[0], root, obj, c.fcl,
-                                model.settings.tolerance)
+        q, c.fcl, rest = seat_fingers(fcl_api, hc, model.hand, q, decoded.q_pre[0], root, obj, c.fcl,
+                                      model.settings.tolerance)
         decoded.q[0] = q
         decoded.closed[0, model.layout.joints] = q
     if c.fcl.legal:  # (a grasp refused at the object stays refused)
-        q = _touch(model, c, fcl_api, hc, q, root, options, obj)
+        q = _touch(model, c, fcl_api, hc, q, root, options, obj, rest)
     c.valid = c.valid and bool(c.fcl.legal)
     settings = _sim_settings()
     if settings is not None and c.squeeze is None:
@@ -203,14 +204,22 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     return c
 
 
-def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, options, obj) -> np.ndarray:
+def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, options, obj,
+           rest: np.ndarray | None = None) -> np.ndarray:
     """The contacting fingers whose pad links stand off the object (exact geometry) closed
     onto it (:func:`.exact_touch.touch_pads`): their contacts moved to where the links
     touch, the fingers that cannot touch with their pads (left where they are) no
-    contacts; the grasp's closure,
-    closing forces and report follow. Returns the posture (n,)."""
+    contacts; ``rest`` (F,) bool, the fingers the seating left resting on their pad body
+    away from the pad point (:func:`.exact_seat.seat_fingers`): their contacts moved to
+    where that body touches. The grasp's closure, closing forces and report follow.
+    Returns the posture (n,)."""
     decoded = c.decoded
     q_new, moved, lost, points = touch_pads(hc, model.hand, q, root, obj, model.sdf, c.fcl, decoded.contact[0])
+    if rest is not None and (rest := rest & decoded.contact[0] & ~moved & ~lost).any():
+        for f in np.flatnonzero(rest):
+            parts = np.flatnonzero(np.isin(hc.shapes.part_link, pad_body_rows(model.hand, hc, int(f))))
+            points[f] = pad_nearest(hc, q_new, root, model.sdf, parts)[1]
+        moved = moved | rest
     if not (moved.any() or lost.any()):
         return q
     decoded.q[0] = q_new
@@ -220,7 +229,8 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
         decoded.contact_points[0, moved] = surface
         decoded.contact_normals[0, moved] = normals
     decoded.contact[0, lost] = False
-    c.fcl = fcl_api.object_report(hc, q_new, root, obj)
+    if not np.array_equal(q_new, q):  # (a pad body resting as seated leaves the posture)
+        c.fcl = fcl_api.object_report(hc, q_new, root, obj)
     c.valid = c.valid and int(decoded.contact[0].sum()) >= 2
     c.imbalance, balanced = _closing(model, decoded, obj)
     c.epsilon, c.force_closure, c.robust_epsilon = 0.0, False, 0.0

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["seat_fingers", "finger_distance", "SEAT_DEPTH", "SEAT_TRAVEL", "SEAT_STEPS"]
+__all__ = ["seat_fingers", "finger_distance", "pad_body_rows", "pad_nearest", "SEAT_DEPTH", "SEAT_TRAVEL",
+           "SEAT_STEPS"]
 
 #: m: a seated finger's exact geometry is at most this deep in the object (the python-fcl
 #: check allows 1 mm; half of it leaves room for the mesh distance's own error).
@@ -43,6 +44,38 @@ def finger_distance(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarra
                          EXACT_WITHIN if exact_within is None else exact_within)
     k = int(np.argmin(d))
     return float(d[k]), int(parts[k])
+
+
+def pad_body_rows(hand, hc, f: int) -> list[int]:
+    """Rows of ``hc.links`` of finger ``f``'s pad body: its pad link and the links rigidly
+    fixed to it (one body: the Allegro-like tip is a small link on the distal)."""
+    from ..geometry.any_hand_tables import hand_tables
+
+    tables = hand_tables(hand)  # cached per hand
+    finger = hand.fingers[f]
+    links = list(hc.links)
+    body = {hand.links[i] for i, b in zip(tables.finger_link[f], tables.pad_body[f]) if i >= 0 and b}
+    return [links.index(name) for name in body | {finger.pad_link} if name in links]
+
+
+def pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
+    """The least distance (m) of the pad body's collision surface to the object and the
+    point (3,) object frame that has it: the parts' surface samples
+    (:func:`grasp_apso.geometry.any_hand_shapes.local_samples`) read on the object's
+    signed-distance ``grid`` (a few hundred microseconds where a python-fcl query of a
+    mesh fingertip takes milliseconds; the rest is then checked exactly)."""
+    from ..geometry.any_hand_queries import to_frame
+
+    poses = hc.part_poses(q, root)
+    best, point = np.inf, None
+    for k in parts:
+        samples, inflate = hc.shapes.samples[k]
+        pts = to_frame(poses[k], samples)
+        d = grid.distance(pts) - inflate
+        i = int(np.argmin(d))
+        if d[i] < best:
+            best, point = float(d[i]), pts[i]
+    return best, point
 
 
 def _finger_depth(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarray) -> float:
@@ -76,17 +109,23 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
 
     Returns
     -------
-    (q, report)
+    (q, report, rest)
         The seated posture and its report, or the given ones unchanged when no finger
         presses in, the palm does (a finger cannot fix it), or a finger would have to
         open further than :data:`SEAT_TRAVEL` or lose its pad contact (the link then
-        touched the object away from its pad).
+        touched the object away from its pad). ``rest`` (F,) bool: the seated fingers whose
+        pad sphere and pad point left the surface while their pad link rests on it (within
+        ``pad_tolerance`` less :data:`PAD_MARGIN`), their pad body (the pad link and the
+        links fixed to it) nearer than the finger's other links: the contact is where that
+        body touches (a curved fingertip meeting a small object
+        below its pad point: the dex-urdf Barrett's distal link on the sphere).
     """
     tol = float(report.tolerance)
     fingers = hc.shapes.finger
+    rest = np.zeros(len(hand.fingers), dtype=bool)
     deep = np.flatnonzero(report.link_distance < -tol)
     if not len(deep) or np.any(fingers[deep] < 0) or report.link_pairs_colliding:
-        return q, report
+        return q, report, rest
     from ..geometry.any_hand_shapes import object_shape
 
     shape = object_shape(obj)
@@ -105,7 +144,7 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
 
         lo, hi = 0.0, SEAT_TRAVEL
         if _finger_depth(hc, at(hi), root, shape, parts) > SEAT_DEPTH:
-            return q, report  # the penetration is not the closing's: opening does not clear it
+            return q, report, rest  # the penetration is not the closing's: opening does not clear it
         for _ in range(SEAT_STEPS):
             mid = 0.5 * (lo + hi)
             if _finger_depth(hc, at(mid), root, shape, parts) > SEAT_DEPTH:
@@ -115,12 +154,22 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
         seated = at(hi)
     # the pads first: a few point queries, where the whole hand's report takes tens of ms
     before, after = _pad_gaps(hand, q, root, obj, moved), _pad_gaps(hand, seated, root, obj, moved)
-    if np.any((before <= pad_tolerance).any(axis=1) & (after > pad_tolerance - PAD_MARGIN).all(axis=1)):
-        return q, report  # a pad that touched would no longer: the contact was not the pad's
+    left = (before <= pad_tolerance).any(axis=1) & (after > pad_tolerance - PAD_MARGIN).all(axis=1)
     seated_report = fcl_api.object_report(hc, seated, root, obj)
     if not seated_report.legal:
-        return q, report
-    return seated, seated_report
+        return q, report, rest
+    for f in moved[left]:
+        # a pad that touched and no longer does: still a pad contact when the pad link
+        # itself rests on the object and no link of the finger off its pad body is nearer
+        finger = hand.fingers[int(f)]
+        pad = seated_report.link_distance[list(hc.links).index(finger.pad_link)] \
+            if finger.pad_link in hc.links else np.inf
+        body = seated_report.link_distance[pad_body_rows(hand, hc, int(f))]
+        own = seated_report.link_distance[fingers == f]
+        if not (pad <= pad_tolerance - PAD_MARGIN and body.min() <= own.min()):
+            return q, report, np.zeros_like(rest)  # the contact was not the pad's
+        rest[int(f)] = True
+    return seated, seated_report, rest
 
 
 def _pad_gaps(hand, q: np.ndarray, root: np.ndarray, obj, fingers: np.ndarray) -> np.ndarray:

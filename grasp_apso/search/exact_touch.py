@@ -15,7 +15,9 @@ spheres to fit inside such links instead made contacts rare (LEAP's best grasps 
 surface, the way a position-controlled finger keeps closing until it meets the object; its
 contact is then where the link touches. The closing is found by bisection on the pad
 body's surface samples read on the object's distance grid (a python-fcl query of a mesh
-fingertip per step cost 1.4 s per LEAP plan), the whole finger then checked exactly. A
+fingertip per step cost 1.4 s per LEAP plan), then corrected by a few secant steps on the
+whole finger's exact distance (the samples can stand a millimetre off a mesh fingertip's
+nearest point). A
 finger that meets the object first with another link, or not at all within its range, is
 no contact: it stays where it is (the posture the search verified), only its contact is
 dropped.
@@ -25,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["touch_pads", "TOUCH_GAP", "TOUCH_REST", "TOUCH_STEPS", "TOUCH_REACH"]
+__all__ = ["touch_pads", "TOUCH_GAP", "TOUCH_REST", "TOUCH_STEPS", "TOUCH_REACH", "TOUCH_REFINE"]
 
 #: m: a contacting finger whose pad link (exact geometry) is farther than this from the
 #: object is closed onto it (the judged 2 mm, less room for the distance's own error).
@@ -36,10 +38,14 @@ __all__ = ["touch_pads", "TOUCH_GAP", "TOUCH_REST", "TOUCH_STEPS", "TOUCH_REACH"
 TOUCH_GAP = 0.0018
 #: m: a closed finger's pad body rests at most this far off the object (and, checked
 #: exactly, no link of the finger deeper in it than a seated finger's
-#: :data:`.exact_seat.SEAT_DEPTH`).
+#: :data:`.exact_seat.SEAT_DEPTH`): found on the grid, then brought there on the exact
+#: distance (:data:`TOUCH_REFINE` steps); a finger still farther than :data:`TOUCH_GAP`
+#: after them is no contact.
 TOUCH_REST = 0.0005
 #: Bisection steps on the closing (the rest found to the first trial's travel / 2**steps).
 TOUCH_STEPS = 5
+#: Secant steps on the exact distance (python-fcl) after the grid's bisection, at most.
+TOUCH_REFINE = 4
 #: m: the first trial closes the pad point this much farther than the gap, by the pad
 #: point's speed along the closing path at the grasp (then twice that, then the limit).
 TOUCH_REACH = 0.003
@@ -57,24 +63,31 @@ def _closing_joints(hand, finger) -> tuple[list[int], np.ndarray]:
     return joints, np.asarray(limits, dtype=float)
 
 
-def _pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
-    """The least distance (m) of the pad body's collision surface to the object and the
-    point (3,) object frame that has it: the parts' surface samples
-    (:func:`grasp_apso.geometry.any_hand_shapes.local_samples`) read on the object's
-    signed-distance ``grid`` (a few hundred microseconds where a python-fcl query of a
-    mesh fingertip takes milliseconds; the rest is then checked exactly)."""
-    from ..geometry.any_hand_queries import to_frame
-
-    poses = hc.part_poses(q, root)
-    best, point = np.inf, None
-    for k in parts:
-        samples, inflate = hc.shapes.samples[k]
-        pts = to_frame(poses[k], samples)
-        d = grid.distance(pts) - inflate
-        i = int(np.argmin(d))
-        if d[i] < best:
-            best, point = float(d[i]), pts[i]
-    return best, point
+def _exact_rest(distance, t: float, speed: float, deepest: float) -> tuple[float, float, int]:
+    """The closing ``t`` at which the finger's exact distance rests within
+    [-``deepest``, :data:`TOUCH_REST`], from the grid's estimate ``t``: secant steps on the exact
+    distance (``distance(t) -> (d, part)``, python-fcl), at most :data:`TOUCH_REFINE`, the
+    first along the pad point's ``speed`` (m per unit of t). The grid's surface samples
+    stand up to a millimetre off a mesh fingertip's nearest point (measured: an Allegro pad
+    1.08 mm off where the grid read it resting). Returns (t, d, part) of the last trial."""
+    target = 0.5 * TOUCH_REST
+    d, part = distance(t)
+    prev = None
+    for _ in range(TOUCH_REFINE):
+        if -deepest <= d <= TOUCH_REST:
+            break
+        slope = -speed
+        if prev is not None and abs(t - prev[0]) > 1e-9 and (d - prev[1]) / (t - prev[0]) < 0.0:
+            slope = (d - prev[1]) / (t - prev[0])
+        if slope >= -1e-9:
+            break
+        t_next = float(np.clip(t - (d - target) / slope, 0.0, 1.0))
+        if t_next == t:
+            break
+        prev = (t, d)
+        t = t_next
+        d, part = distance(t)
+    return t, d, part
 
 
 def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, contact: np.ndarray):
@@ -105,10 +118,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
         each moved finger's pad link nearest the object (NaN for the others).
     """
     from ..geometry.any_hand_shapes import object_shape
-    from ..geometry.any_hand_tables import hand_tables
-    from .exact_seat import SEAT_DEPTH, finger_distance
-
-    tables = hand_tables(hand)  # cached per hand
+    from .exact_seat import SEAT_DEPTH, finger_distance, pad_body_rows, pad_nearest
 
     n_f = len(hand.fingers)
     moved, lost = np.zeros(n_f, dtype=bool), np.zeros(n_f, dtype=bool)
@@ -122,8 +132,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
             continue
         pad_row = links.index(finger.pad_link)
         # the pad link and the links rigidly fixed to it: one body
-        body = {hand.links[i] for i, b in zip(tables.finger_link[f], tables.pad_body[f]) if i >= 0 and b}
-        body_rows = [links.index(name) for name in body | {finger.pad_link} if name in links]
+        body_rows = pad_body_rows(hand, hc, int(f))
         gap = float(report.link_distance[pad_row])
         if gap <= TOUCH_GAP:
             continue
@@ -148,7 +157,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
         # exactly (python-fcl) at the rest
         found = False
         for _ in range(3):
-            if _pad_nearest(hc, at(hi), root, grid, pad_parts)[0] <= TOUCH_REST:
+            if pad_nearest(hc, at(hi), root, grid, pad_parts)[0] <= TOUCH_REST:
                 found = True
                 break
             if hi >= 1.0:
@@ -158,17 +167,17 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
             lo = 0.0
             for _ in range(TOUCH_STEPS):
                 mid = 0.5 * (lo + hi)
-                if _pad_nearest(hc, at(mid), root, grid, pad_parts)[0] <= TOUCH_REST:
+                if pad_nearest(hc, at(mid), root, grid, pad_parts)[0] <= TOUCH_REST:
                     hi = mid
                 else:
                     lo = mid
-            d, part = finger_distance(hc, at(hi), root, shape, parts)
+            hi, d, part = _exact_rest(lambda t: finger_distance(hc, at(t), root, shape, parts), hi, speed, SEAT_DEPTH)
             # resting on the pad, no deeper than a seated finger; another link nearer is no pad contact
-            found = d >= -SEAT_DEPTH and part in pad_parts
+            found = -SEAT_DEPTH <= d <= TOUCH_GAP and part in pad_parts
         if found:
             out = at(hi)
             moved[f] = True
-            points[f] = _pad_nearest(hc, out, root, grid, pad_parts)[1]
+            points[f] = pad_nearest(hc, out, root, grid, pad_parts)[1]
         else:
             lost[f] = True
     return out, moved, lost, points
