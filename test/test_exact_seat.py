@@ -79,8 +79,8 @@ def test_a_legal_grasp_is_left_as_it_is(grasp):
 def _ball_against_the_pad_link(hand, hc, cand, f: int):
     """A ball (8 mm radius) pressing 1.1-6 mm into finger f's pad link beside its pad
     point, near enough that the pad sphere touches (within PAD_TOLERANCE) before the
-    seating and farther than it after: found by a bounded scan of positions along the pad
-    link's axes. Returns (ball, report) or None."""
+    seating: a bounded scan of positions along the pad link's axes, yielding each
+    (ball, report) (the caller keeps those the seating leaves resting on the pad link)."""
     from grasp_apso.model.objects import from_arrays
     from grasp_apso.search.exact_seat import _pad_gaps
 
