@@ -31,6 +31,12 @@ present), their normal uncertainty (:func:`~grasp_apso.quality.robustness.normal
 large at an edge or a corner), their height below the object's top (a rim) and above the
 table, epsilon and the robust epsilon (:func:`~grasp_apso.quality.robustness.robust_epsilon`).
 
+A general hand's candidates also record where the object stood, from its planned pose,
+after the closing and after the squeeze (``grasp_*`` / ``squeezed_*`` shift mm and turn
+deg), and the totals count the dropped best grasps by where they went wrong
+(:func:`drop_phase`): the squeezed object already past the limits, turned 5 degrees or
+more by the squeeze, or dropped in the disturbance.
+
 Prints a table per object (best held / candidates held / median shift mm and turn deg /
 the directions that fail), the totals per algorithm, the failed grasps with their features,
 and "re-ranked" held rates: the best grasp chosen among the force-closure candidates by
@@ -201,23 +207,64 @@ def run_case(task: tuple) -> dict:
 
 def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     """A general hand's candidate in ``simulate_any_hand``: the verdict fields (an error is
-    recorded in ``row["sim_errors"]`` and counted as dropped)."""
+    recorded in ``row["sim_errors"]`` and counted as dropped), and where the object was
+    before the disturbances, from the planned pose: after the closing (``grasp_*``) and
+    after the squeeze and its settling (``squeezed_*``)."""
     from grasp_apso.simulation.any_hand import simulate_any_hand
+    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
+    from grasp_apso.simulation.phases import angle_between, planned_reference
+
+    ref_pos, ref_quat = planned_reference(pose, obj.center_of_mass)
+    seen: dict = {}
+
+    def observe(phase, model, data) -> None:
+        if phase in ("grasp", "squeezed"):
+            body = model.body(OBJECT_BODY).id
+            seen[phase] = (1000 * float(np.linalg.norm(data.xipos[body] - ref_pos)),
+                           math.degrees(angle_between(ref_quat, data.xquat[body])))
 
     try:
         sim = simulate_any_hand(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions,
-                                cand.joint_positions, cand.squeeze_positions, scene, options.friction)
+                                cand.joint_positions, cand.squeeze_positions, scene, options.friction,
+                                observer=observe)
     except Exception as exc:  # recorded, counted as dropped
         row.setdefault("sim_errors", []).append(f"{type(exc).__name__}: {exc}")
         sim = None
-    return {
+    out = {
         "held": bool(sim is not None and sim.held),
         "shift_mm": 1000 * sim.max_shift if sim else math.inf,
         "turn_deg": math.degrees(sim.max_turn) if sim else math.inf,
         "failed": [d for d, _, _, ok in sim.per_direction if not ok] if sim else ["error"],
-        "squeezed_turn_deg": math.degrees(sim.per_direction[0][2]) if sim and sim.per_direction else math.inf,
         "sim_s": sim.sim_time if sim else 0.0,
     }
+    for phase in ("grasp", "squeezed"):
+        out[f"{phase}_shift_mm"], out[f"{phase}_turn_deg"] = seen.get(phase, (math.inf, math.inf))
+    return out
+
+
+#: A dropped grasp's object, after the closing, the squeeze and its settling, before any
+#: disturbance, was: past the check's limits (``SimulationSettings.max_shift`` and
+#: ``max_turn``, 5 cm and 15 degrees: dropped whatever the disturbance), moved at least
+#: SHOVED_SHARE of a limit (16.7 mm or 5 degrees: the closing and squeeze used up a third
+#: of what the disturbance may add), or near its planned pose (the disturbance dropped it).
+SHOVED_SHARE = 1.0 / 3.0
+DROP_PHASES = ("past the limits when squeezed", "moved a third of a limit by the closing and squeeze",
+               "in the disturbance")
+
+
+def drop_phase(c: dict) -> str | None:
+    """Where a dropped general-hand candidate went wrong (one of :data:`DROP_PHASES`);
+    None when it held or its phases were not recorded (the paper hand's check)."""
+    from grasp_apso.simulation.settings import SimulationSettings  # the check's own limits
+
+    if c["held"] or "squeezed_turn_deg" not in c:
+        return None
+    limits = SimulationSettings()
+    shift = c["squeezed_shift_mm"] / (1000 * limits.max_shift)
+    turn = c["squeezed_turn_deg"] / math.degrees(limits.max_turn)
+    if max(shift, turn) >= 1.0:
+        return DROP_PHASES[0]
+    return DROP_PHASES[1] if max(shift, turn) >= SHOVED_SHARE else DROP_PHASES[2]
 
 
 def best_by(cands: list[dict], key: str) -> dict | None:
@@ -253,6 +300,9 @@ def summarise(rows: list[dict]) -> dict:
         out[f"best_held_by_{key}"] = sum(best_by(r["candidates"], key)["held"] for r in planned)
     robust = [c for c in cands if c["robust_epsilon"] > 0.0]
     out["robust_candidates"], out["robust_candidates_held"] = len(robust), sum(c["held"] for c in robust)
+    phases = [drop_phase(r["candidates"][0]) for r in planned]
+    if any(phases):
+        out["best_dropped_by_phase"] = {p: phases.count(p) for p in DROP_PHASES}
     return out
 
 
@@ -290,6 +340,9 @@ def print_report(rows: list[dict], algorithms: list[str], objects: list[str]) ->
                                                           for k in RERANK_KEYS))
             print(f"{'':22s} candidates with robust epsilon > 0: "
                   f"{_rate(s['robust_candidates_held'], s['robust_candidates'])} held")
+            if "best_dropped_by_phase" in s:
+                print(f"{'':22s} best grasps dropped, the object when squeezed: "
+                      + ", ".join(f"{n} {p}" for p, n in s["best_dropped_by_phase"].items()))
             summary[f"{alg}/{label}"] = s
         summary[f"{alg}/per_object"] = per_object
     return summary
@@ -305,7 +358,9 @@ def print_failures(rows: list[dict]) -> None:
                 print(f"{r['algorithm']:4s} {r['object']:20s} p{r['pose']} s{r['seed']} #{c['rank']} "
                       f"{'+'.join(f[0].upper() for f in c['fingers']):6s} unc {c['uncertainty_deg']} "
                       f"top {c['below_top_mm']} eps {c['epsilon']:.3f} rob {c['robust_epsilon']:.3f} "
-                      f"{c['shift_mm']:.0f}/{c['turn_deg']:.0f} {','.join(c['failed'])}")
+                      f"{c['shift_mm']:.0f}/{c['turn_deg']:.0f} {','.join(c['failed'])}"
+                      + (f" squeezed {c['squeezed_shift_mm']:.0f}/{c['squeezed_turn_deg']:.0f}"
+                         if "squeezed_turn_deg" in c else ""))
     cands = [c for r in rows for c in r["candidates"]]
     features = {
         "contacts": lambda c: len(c["fingers"]), "thumb": lambda c: float(c["thumb"]),
