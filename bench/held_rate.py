@@ -34,8 +34,8 @@ table, epsilon and the robust epsilon (:func:`~grasp_apso.quality.robustness.rob
 A general hand's candidates also record where the object stood, from its planned pose,
 after the closing and after the squeeze (``grasp_*`` / ``squeezed_*`` shift mm and turn
 deg), and the totals count the dropped best grasps by where they went wrong
-(:func:`drop_phase`): the squeezed object already past the limits, turned 5 degrees or
-more by the squeeze, or dropped in the disturbance.
+(:func:`drop_phase`): the squeezed object already past the limits, moved a third of a
+limit or more by the closing and squeeze, or dropped in the disturbance.
 
 Prints a table per object (best held / candidates held / median shift mm and turn deg /
 the directions that fail), the totals per algorithm, the failed grasps with their features,
@@ -257,7 +257,8 @@ def drop_phase(c: dict) -> str | None:
     None when it held or its phases were not recorded (the paper hand's check)."""
     from grasp_apso.simulation.settings import SimulationSettings  # the check's own limits
 
-    if c["held"] or "squeezed_turn_deg" not in c:
+    # (runs saved before the phases were recorded have no squeezed shift: not counted)
+    if c["held"] or "squeezed_shift_mm" not in c:
         return None
     limits = SimulationSettings()
     shift = c["squeezed_shift_mm"] / (1000 * limits.max_shift)
@@ -360,7 +361,7 @@ def print_failures(rows: list[dict]) -> None:
                       f"top {c['below_top_mm']} eps {c['epsilon']:.3f} rob {c['robust_epsilon']:.3f} "
                       f"{c['shift_mm']:.0f}/{c['turn_deg']:.0f} {','.join(c['failed'])}"
                       + (f" squeezed {c['squeezed_shift_mm']:.0f}/{c['squeezed_turn_deg']:.0f}"
-                         if "squeezed_turn_deg" in c else ""))
+                         if "squeezed_shift_mm" in c else ""))
     cands = [c for r in rows for c in r["candidates"]]
     features = {
         "contacts": lambda c: len(c["fingers"]), "thumb": lambda c: float(c["thumb"]),
