@@ -31,6 +31,11 @@ present), their normal uncertainty (:func:`~grasp_apso.quality.robustness.normal
 large at an edge or a corner), their height below the object's top (a rim) and above the
 table, epsilon and the robust epsilon (:func:`~grasp_apso.quality.robustness.robust_epsilon`).
 
+``--dexgraspbench``: every general-hand candidate is also checked with DexGraspBench's own
+contact and servo parameters (:func:`dexgraspbench_settings`), the same protocol and limits
+otherwise; the totals print both held rates. Our check is the stricter of the two (mostly its
+torsional friction, a quarter of DexGraspBench's).
+
 A general hand's candidates also record where the object stood, from its planned pose,
 after the closing and after the squeeze (``grasp_*`` / ``squeezed_*`` shift mm and turn
 deg), and the totals count the dropped best grasps by where they went wrong
@@ -132,6 +137,35 @@ def general_hand(spec: str):
     return _HANDS[spec]
 
 
+#: DexGraspBench's simulation parameters where they differ from ours (:func:`dexgraspbench_settings`).
+DEXGRASPBENCH = {"torsional_friction": 0.02, "kp": 5.0, "solref": (0.0125, 1.0), "solimp": (0.7, 0.97, 0.00055),
+                 "hand_close_time": 0.4, "hand_squeeze_time": 0.4, "settle_time": 0.0, "max_settle_time": 0.0}
+
+
+def dexgraspbench_settings():
+    """The simulation settings of DexGraspBench's evaluation (github.com/JYChen18/DexGraspBench,
+    ``src/util/hand_util.py``, ``src/task/eval_func/fc_mocap.py``, ``config/task/eval.yaml``
+    and its README), where they differ from ours; the protocol (the wrist fixed, pre-grasp ->
+    grasp -> squeeze, 10 m/s^2 for 2 s in six directions, 5 cm / 15 degrees from the planned
+    pose, 0.1 kg, no table in the disturbance) and the sliding friction (the planner's mu)
+    stay ours:
+
+    - torsional friction 0.02 (``miu_coef: [0.6, 0.02]``; ours 0.005, MuJoCo's default);
+    - servo gain 5 (the README: "raising the hand's kp from 1 to 5"; ours 2);
+    - contacts: DexGraspBench gives the hand's geoms solref (0.005, 1) and solimp (0.5, 0.99,
+      0.0001) and leaves the object's at MuJoCo's defaults, which MuJoCo averages; our object
+      geoms carry every contact's parameters (priority), so they take that average;
+    - pre-grasp -> grasp and grasp -> squeeze each interpolated over 10 x 10 steps of 4 ms
+      (0.4 s), the disturbance right after the squeeze (no settling).
+
+    Not replicated: ``noslip_iterations = 2`` (no setting of ours)."""
+    from dataclasses import replace
+
+    from grasp_apso.simulation.settings import SimulationSettings
+
+    return replace(SimulationSettings(), **DEXGRASPBENCH)
+
+
 def run_case(task: tuple) -> dict:
     """Plan one (object, pose, algorithm, seed) on a table with the paper hand or the
     general hand of ``--hand`` and simulate every candidate (the paper hand with
@@ -142,7 +176,7 @@ def run_case(task: tuple) -> dict:
     from grasp_apso.search.options import PlanOptions
     from grasp_apso.search.planner import plan
 
-    name, pose_index, pose, algorithm, seed, swarm, simulate, spec = task
+    name, pose_index, pose, algorithm, seed, swarm, simulate, spec, dexgraspbench = task
     general = spec not in ("paper", "")
     if general:
         hand, plan_hand = general_hand(spec), general_hand(spec)
@@ -192,6 +226,8 @@ def run_case(task: tuple) -> dict:
             features["imbalance"] = closing_forces(pts_obj, nrm_obj, obj.center_of_mass,
                                                    obj.characteristic_radius)[1] if len(pts) >= 2 else 1.0
             features.update(_simulate_any(hand, obj, pose, cand, scene, options, row))
+            if dexgraspbench:
+                features["dgb_held"] = _held_dexgraspbench(hand, obj, pose, cand, scene, options, row)
         else:
             from grasp_apso.simulation import simulate_grasp
 
@@ -240,6 +276,20 @@ def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     for phase in ("grasp", "squeezed"):
         out[f"{phase}_shift_mm"], out[f"{phase}_turn_deg"] = seen.get(phase, (math.inf, math.inf))
     return out
+
+
+def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> bool:
+    """Whether a general hand's candidate holds with :func:`dexgraspbench_settings` (an
+    error is recorded in ``row["sim_errors"]`` and counted as dropped)."""
+    from grasp_apso.simulation.any_hand import simulate_any_hand
+
+    try:
+        return bool(simulate_any_hand(hand, obj, pose, cand.wrist_pose, cand.pre_grasp_positions,
+                                      cand.joint_positions, cand.squeeze_positions, scene, options.friction,
+                                      settings=dexgraspbench_settings()).held)
+    except Exception as exc:  # recorded, counted as dropped
+        row.setdefault("sim_errors", []).append(f"dexgraspbench: {type(exc).__name__}: {exc}")
+        return False
 
 
 #: A dropped grasp's object, after the closing, the squeeze and its settling, before any
@@ -301,6 +351,9 @@ def summarise(rows: list[dict]) -> dict:
         out[f"best_held_by_{key}"] = sum(best_by(r["candidates"], key)["held"] for r in planned)
     robust = [c for c in cands if c["robust_epsilon"] > 0.0]
     out["robust_candidates"], out["robust_candidates_held"] = len(robust), sum(c["held"] for c in robust)
+    if cands and all("dgb_held" in c for c in cands):
+        out["dgb_best_held"] = sum(r["candidates"][0]["dgb_held"] for r in planned)
+        out["dgb_candidates_held"] = sum(c["dgb_held"] for c in cands)
     phases = [drop_phase(r["candidates"][0]) for r in planned]
     if any(phases):
         out["best_dropped_by_phase"] = {p: phases.count(p) for p in DROP_PHASES}
@@ -341,6 +394,9 @@ def print_report(rows: list[dict], algorithms: list[str], objects: list[str]) ->
                                                           for k in RERANK_KEYS))
             print(f"{'':22s} candidates with robust epsilon > 0: "
                   f"{_rate(s['robust_candidates_held'], s['robust_candidates'])} held")
+            if "dgb_best_held" in s:
+                print(f"{'':22s} with DexGraspBench's parameters: best {_rate(s['dgb_best_held'], planned)}, "
+                      f"candidates {_rate(s['dgb_candidates_held'], s['candidates'])}")
             if "best_dropped_by_phase" in s:
                 print(f"{'':22s} best grasps dropped, the object when squeezed: "
                       + ", ".join(f"{n} {p}" for p, n in s["best_dropped_by_phase"].items()))
@@ -392,6 +448,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="plan with PlanOptions.simulate (the simulation in the final selection: "
                              "held candidates first); every candidate is then simulated again here")
     parser.add_argument("--failures", action="store_true", help="print every dropped grasp")
+    parser.add_argument("--dexgraspbench", action="store_true",
+                        help="a general hand's candidates also checked with DexGraspBench's contact and servo "
+                             "parameters (dexgraspbench_settings)")
     parser.add_argument("--hand", default="paper",
                         help="paper (default), a test hand (shadow, inspire, allegro_like, ...), a dex-urdf "
                              "hand (allegro, leap, ability, ...) or a URDF / MJCF file")
@@ -416,7 +475,9 @@ def main(argv: list[str] | None = None) -> int:
         hand_path(args.hand)  # a bad name fails here, before any worker starts
     tag = "" if args.hand == "paper" else "_" + Path(args.hand).stem
     out = args.out or REPO / "bench" / "results" / f"held_rate{tag}{'_simulate' if args.simulate else ''}.json"
-    tasks = [(name, k, pose, alg, seed, swarm, args.simulate, args.hand) for alg in args.algorithms for name in objects
+    if args.dexgraspbench and args.hand in ("paper", ""):
+        raise SystemExit("--dexgraspbench: for a general hand (--hand); the paper hand keeps its published check")
+    tasks = [(name, k, pose, alg, seed, swarm, args.simulate, args.hand, args.dexgraspbench) for alg in args.algorithms for name in objects
              for k, pose in enumerate(poses) for seed in range(seeds)]
     t0 = time.perf_counter()
     load0 = os.getloadavg()[0]
@@ -433,7 +494,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{os.getloadavg()[0]:.1f})")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({
-        "benchmark": "held_rate", "hand": args.hand, "simulate": args.simulate, "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
+        "benchmark": "held_rate", "hand": args.hand, "simulate": args.simulate,
+        "dexgraspbench": DEXGRASPBENCH if args.dexgraspbench else None, "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
         "swarm": swarm or "default", "seeds": seeds, "poses": [p.tolist() for p in poses],
         "wall_s": round(wall, 1), "summary": summary, "runs": rows}, indent=1, default=float) + "\n")
     print(f"wrote {out}")

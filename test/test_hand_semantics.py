@@ -292,3 +292,37 @@ def test_mjcf_joint_kinds(tmp_path, change, outcome):
     else:
         with pytest.raises(HandDescriptionError, match=expected):
             load_hand(path, spheres=False)
+
+
+def test_slides_and_several_hinges_per_body_pose_as_mujoco_does(tmp_path):
+    """The compiled forward kinematics (:mod:`grasp_apso.model.hands.fk_kernel`) on the
+    motions the real hands lack: a slide joint, and a body carrying two hinges about
+    off-origin anchors, checked against MuJoCo's own kinematics of the same file."""
+    import mujoco
+
+    path = _mjcf(tmp_path, 2)
+    text = path.read_text()
+    text = text.replace('<joint name="f0_j1" axis="0 1 0" range="0 1.5"/>',
+                        '<joint name="f0_s" type="slide" axis="0.6 0 0.8" range="-0.01 0.02"/>'
+                        '<joint name="f0_j1" axis="0 1 0" pos="0.003 0 0.005" range="0 1.5"/>', 1)
+    text = text.replace('<joint name="f1_j2" axis="0 1 0" range="0 1.5"/>',
+                        '<joint name="f1_j2" axis="0 1 0" pos="0 0.002 0.004" range="0 1.5"/>'
+                        '<joint name="f1_j3" axis="1 0 0" pos="0.001 0 0.01" range="-0.5 0.5"/>', 1)
+    path.write_text(text)
+    hand = load_hand(path, spheres=False)
+    assert {"f0_s", "f1_j3"} <= set(hand.actuated_joints)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    q = np.random.default_rng(3).uniform(hand.lower, hand.upper, size=(12, hand.n_joints))
+    batch = hand.link_transforms_batch(q)
+    for k, row in enumerate(q):
+        for name, value in zip(hand.joint_names, hand.full_positions(row)):
+            data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
+        mujoco.mj_kinematics(model, data)
+        root = np.eye(4)
+        root[:3, :3], root[:3, 3] = data.xmat[model.body("palm").id].reshape(3, 3), data.xpos[model.body("palm").id]
+        for i, link in enumerate(hand.links):
+            b = model.body(link).id
+            pose = np.eye(4)
+            pose[:3, :3], pose[:3, 3] = data.xmat[b].reshape(3, 3), data.xpos[b]
+            np.testing.assert_allclose(batch[k, i], np.linalg.inv(root) @ pose, atol=1e-9, err_msg=link)

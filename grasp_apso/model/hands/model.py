@@ -14,11 +14,13 @@ Immutable: every array is read-only; built once per hand by :func:`.load.load_ha
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Mapping
 
 import numpy as np
 
 from ...errors import InputError
+from .fk_kernel import FlatTree, flat_tree, link_poses
 from .geometry import LinkGeometry
 
 __all__ = ["Finger", "Coupling", "Motion", "HandModel", "readonly"]
@@ -85,14 +87,6 @@ class Motion:
     anchor: tuple[float, float, float]
     index: int
     ref: float = 0.0
-
-
-def _rotations(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rodrigues: unit axis (3,), angles (P,) -> (P, 3, 3)."""
-    x, y, z = axis
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,26 +167,13 @@ class HandModel:
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.n_joints:
             raise InputError(f"q: expected shape (P, {self.n_joints}), got {q.shape}", "q")
-        full = self.full_positions(q)
-        count = q.shape[0]
-        out = np.empty((count, len(self.links), 4, 4))
-        for i, parent in enumerate(self.link_parents):
-            base = self.origins[i] if parent < 0 else out[:, parent] @ self.origins[i]
-            pose = np.broadcast_to(base, (count, 4, 4)).copy()
-            for m in self.motions[i]:
-                axis = np.asarray(m.axis)
-                value = full[:, m.index] - m.ref
-                local = np.broadcast_to(np.eye(4), (count, 4, 4)).copy()
-                if m.kind == "revolute":
-                    rot = _rotations(axis, value)
-                    anchor = np.asarray(m.anchor)
-                    local[:, :3, :3] = rot
-                    local[:, :3, 3] = anchor - rot @ anchor
-                else:
-                    local[:, :3, 3] = value[:, None] * axis
-                pose = pose @ local
-            out[:, i] = pose
-        return self.root_inverse @ out
+        return link_poses(self._tree, self.full_positions(q))
+
+    @cached_property
+    def _tree(self) -> FlatTree:
+        """The kinematic tree flattened for the compiled walk (once per model; a model
+        made by ``replace`` flattens its own)."""
+        return flat_tree(self.link_parents, self.origins, self.motions, self.root_inverse)
 
     def link_transforms(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Every link's pose in the root frame: q (n,) -> {link: (4, 4)}, couplings applied."""
