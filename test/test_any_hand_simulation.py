@@ -233,6 +233,39 @@ def test_empty_grasp_drops(hands, name):
         assert np.linalg.norm(rec.object[d][0] - planned) >= 0.05, d
 
 
+def test_physics_that_blows_up_is_never_held(hands, monkeypatch, tmp_path):
+    """Servos far too stiff for the time step blow the simulation up in the closing: MuJoCo
+    resets the state, which puts the object back on its planned pose when that is where
+    the compiled model has it (the identity here). The check must not read that as held."""
+    from grasp_apso.simulation.phases import instabilities
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning log to the working directory
+    hand = hands["shadow"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    root = np.linalg.inv(pose) @ ROOT  # the same grasp, the object at the identity
+    settings = SimulationSettings(pregrasp_fraction=1.0, hand_close_time=0.3, hand_squeeze_time=0.1, duration=0.2,
+                                  kp=1e4, timestep=0.02, max_torque=1e3)
+    seen: dict[str, int] = {}
+    res = simulate_any_hand(hand, obj, np.eye(4), root, q_pre, q_grasp, q_squeeze, settings=settings,
+                            observer=lambda phase, model, data: seen.setdefault(phase, instabilities(data)))
+    assert seen["squeezed"] > 0  # it did blow up, before the disturbances
+    assert not res.held and not any(h for *_, h in res.per_direction), res
+    # the same grasp with sound servos holds (the failure above is the blow-up's)
+    sound = replace(settings, kp=SimulationSettings().kp, timestep=SimulationSettings().timestep,
+                    max_torque=SimulationSettings().max_torque)
+    assert simulate_any_hand(hand, obj, np.eye(4), root, q_pre, q_grasp, q_squeeze, settings=sound).held
+
+
+def test_no_joint_damping_is_a_setting_not_a_crash(hands):
+    """``joint_damping`` 0 is within its range: the servos keep the gain as set (it raised
+    ZeroDivisionError when the gain was matched to a damped joint's time constant)."""
+    hand = hands["allegro"]
+    obj, pose, q_pre, q_grasp, q_squeeze = _power_grasp(hand, 0.03, ROOT)
+    res = simulate_any_hand(hand, obj, pose, ROOT, q_pre, q_grasp, q_squeeze,
+                            settings=replace(QUICK, joint_damping=0.0, duration=0.1))
+    assert len(res.per_direction) == 6
+
+
 def test_table_takes_no_part_in_the_disturbance(hands):
     """The ball rests on a table far from the hand: the table does not stop a push down."""
     hand = hands["allegro"]

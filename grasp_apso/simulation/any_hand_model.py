@@ -334,7 +334,8 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         joint = spec.joint(name)
         if joint is None:
             raise SimulationError(f"simulation: actuated joint {name!r} is not a joint of the compiled hand")
-        kp = max(settings.kp, float(np.max(joint.damping)) / tau)
+        # (no damping set: no time constant to keep, the gain as set)
+        kp = max(settings.kp, float(np.max(joint.damping)) / tau) if tau > 0.0 else settings.kp
         a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.dyntype = mujoco.mjtDyn.mjDYN_NONE
         a.gaintype = mujoco.mjtGain.mjGAIN_FIXED

@@ -119,6 +119,18 @@ def disable_contacts(model, geoms: Sequence[int]) -> None:
         model.geom_conaffinity[g] = 0
 
 
+def instabilities(data) -> int:
+    """How often MuJoCo met a non-finite or huge acceleration in this check (its
+    ``mjWARN_BADQACC`` count; the data is made fresh per check). MuJoCo then resets the
+    state, putting the object back where the compiled model has it, which can be the
+    planned pose: nothing measured after it is the grasp's doing (a Shadow grasp whose
+    servos blew up within the closing read "held", 4 mm from the planned pose, in every
+    direction)."""
+    import mujoco
+
+    return int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+
+
 def disturb(model, data, body: int, settings: SimulationSettings, ref_pos: np.ndarray, ref_quat: np.ndarray,
             stop_at_first_failure: bool = False, should_stop: Callable[[], bool] | None = None,
             observer: Callable[[str, object, object], None] | None = None) -> list[tuple[str, float, float, bool]]:
@@ -128,7 +140,8 @@ def disturb(model, data, body: int, settings: SimulationSettings, ref_pos: np.nd
     ``object_mass * disturbance`` N for ``duration`` s and track the centre of mass's
     distance from ``ref_pos`` (3,) m and the turn from ``ref_quat`` (4,) (the planned
     pose); the direction fails (and stops) once the shift reaches ``max_shift`` or the
-    turn ``max_turn``. ``should_stop`` is polled before each direction; ``observer(name,
+    turn ``max_turn``, and every direction fails once the physics went unstable
+    (:func:`instabilities`: in the closing or squeeze, or in an earlier direction). ``should_stop`` is polled before each direction; ``observer(name,
     model, data)``, when given, sees the state at the end of each direction.
 
     Returns ``[(direction, shift m, turn rad, held), ...]``.
@@ -154,7 +167,7 @@ def disturb(model, data, body: int, settings: SimulationSettings, ref_pos: np.nd
         mujoco.mj_forward(model, data)
         shift = float(np.linalg.norm(data.xipos[body] - ref_pos))
         turn = angle_between(ref_quat, data.xquat[body])
-        held = shift < settings.max_shift and turn < settings.max_turn
+        held = shift < settings.max_shift and turn < settings.max_turn and not instabilities(data)
         done = 0
         try:
             while held and done < n_total:
@@ -164,7 +177,7 @@ def disturb(model, data, body: int, settings: SimulationSettings, ref_pos: np.nd
                 shift = max(shift, float(np.linalg.norm(data.xipos[body] - ref_pos)))
                 turn = max(turn, angle_between(ref_quat, data.xquat[body]))
                 if shift >= settings.max_shift or turn >= settings.max_turn \
-                        or not np.all(np.isfinite(data.qpos)):
+                        or not np.all(np.isfinite(data.qpos)) or instabilities(data):
                     held = False
         except mujoco.FatalError as exc:  # pragma: no cover - unstable physics
             raise SimulationError(f"simulation: MuJoCo failed in direction {name}: {exc}") from exc
