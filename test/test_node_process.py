@@ -187,7 +187,7 @@ def test_a_client_that_leaves_has_its_requests_cancelled_within_a_second(client_
     cancelled within 1 s of its departure, and the next caller is served at once."""
     import time
 
-    node_proc = _start_node()
+    node_proc = _start_node('--log-level', 'grasp_apso:=debug')  # (the watch's first sighting)
     node_out = LineReader(node_proc.stdout)
     extra = {'FASTRTPS_DEFAULT_PROFILES_FILE': os.path.join(REPO_ROOT, 'config', 'fastdds_short_lease.xml')}
     dying = subprocess.Popen([PYTHON, '-c', DYING_CLIENT_SCRIPT, SERVICE], cwd=REPO_ROOT,
@@ -197,6 +197,11 @@ def test_a_client_that_leaves_has_its_requests_cancelled_within_a_second(client_
     try:
         assert dying_out.wait(lambda lines: 'sent' in lines, 60.0), dying_out.text()
         assert node_out.wait(lambda lines: any('10000 iterations' in l for l in lines), 30.0), node_out.text()
+        # The node's graph shows a new client a few hundred ms after its requests arrive:
+        # only a client it has seen can be seen leaving (before, the watch cancelled on the
+        # second check whoever the client was, which this test took for the departure).
+        assert node_out.wait(lambda lines: any('a service client seen' in l for l in lines), 30.0), node_out.text()
+        assert 'client left' not in node_out.text(), node_out.text()
         if how == 'sigkill':
             dying.kill()
             dying.wait(timeout=10.0)
