@@ -18,9 +18,8 @@ run; whatever fails, they answer (``success: false``, "internal error", details 
 log). The servers keep a history of :data:`REQUEST_HISTORY` requests (reliable), more than
 the node can ever hold; a reply the middleware drops is sent again (:mod:`.responses`). A
 busy action goal is rejected in ``goal_callback``; a cancelled queued goal is answered at
-once; when the last client of the service (or of the action) has left the graph (seen
-there, then gone), its requests are cancelled (checked every :data:`WATCH_PERIOD` s, on
-the second sighting).
+once; when the last client of the service (or of the action) has left the graph (seen,
+then gone: :mod:`.departures`), its requests are cancelled (checked every :data:`WATCH_PERIOD` s).
 """
 
 from __future__ import annotations
@@ -51,6 +50,7 @@ from grasp_apso_interfaces.srv import PlanGrasp
 
 from ..errors import GraspApsoError
 from .conversions import fill_result, progress_msg, reply_header
+from .departures import DepartureWatch
 from .goals import GoalRegistry
 from .job import Job
 from .markers import grasp_markers
@@ -83,9 +83,7 @@ class GraspPlannerNode(Node):
         self.worker = Worker(self, workers=settings["workers"], queue_length=settings["queue_length"],
                              database=self.parameters.database, hand=self.parameters.planning_hand.hand)
         self._goals = GoalRegistry()
-        self._absent: dict[RequestKind, int] = {kind: 0 for kind in RequestKind}
-        # whether the graph has shown a client of the kind since its requests became active
-        self._seen: dict[RequestKind, bool] = {kind: False for kind in RequestKind}
+        self._departures = DepartureWatch(RequestKind)
         self.get_logger().info("loading the planner's compiled kernels ...")
         seconds = self.worker.warm_up()
         if seconds is not None:
@@ -250,27 +248,15 @@ class GraspPlannerNode(Node):
         return msg
 
     def _watch_clients(self) -> None:
-        """Timer: cancel the requests of a kind whose last client left the graph (seen
-        twice in a row, :data:`WATCH_PERIOD` apart: a client's request writer is briefly
-        absent while it reconnects). rclpy tells when no client is left, not which one
-        left: with other clients of the same kind present, nothing is cancelled.
-
-        Left means seen, then gone: a new client's request arrives before the graph shows
-        the client (the graph comes from each participant's discovery messages, which trail
-        the request by a few hundred ms), and counting from the request cancelled live
-        callers ("the client left" 0.26 s after a fresh client's request, in the full test
-        suite). A client that leaves before the graph ever showed it is not noticed: its
-        plans run to their time bound. The first sighting is logged at debug level."""
+        """Timer: cancel the requests of a kind whose clients all left the graph (seen there,
+        then gone: :mod:`.departures`). With other clients of the same kind present,
+        nothing is cancelled (rclpy tells how many clients are left, not which)."""
         kinds = self.worker.active_kinds()
         for kind, endpoint in self._client_endpoints.items():
-            present = self.count_clients(endpoint) > 0
-            seen = kind in kinds and (self._seen[kind] or present)
-            if seen and not self._seen[kind]:
+            first, gone = self._departures.check(kind, kind in kinds, self.count_clients(endpoint) > 0)
+            if first:
                 self.get_logger().debug(f"departed-client watch: a {kind.value} client seen")
-            self._seen[kind] = seen
-            gone = seen and not present
-            self._absent[kind] = self._absent[kind] + 1 if gone else 0
-            if self._absent[kind] >= 2:
+            if gone:
                 n = self.worker.cancel_where(lambda j, k=kind: j.kind == k, "cancelled: the client left")
                 if n:
                     self.get_logger().warning(f"no {kind.value} client left: cancelled {n} of its requests")
