@@ -20,6 +20,7 @@ import math
 import numba
 import numpy as np
 
+from ..model.hands.fk_kernel import apply_motion
 from . import kernels as _kernels
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -85,32 +86,8 @@ def finger_poses(q, f, K, poses, tmp, local):
             value = full_b[k] - m_ref[m]
             for j in range(nq):
                 value += full_a[k, j] * q[j]
-            x, y, z = m_axis[m, 0], m_axis[m, 1], m_axis[m, 2]
-            if m_kind[m] == 1:  # prismatic: a translation by value along the axis
-                r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-                t0, t1, t2 = value * x, value * y, value * z
-            else:
-                sn, cs = math.sin(value), math.cos(value)
-                t = 1.0 - cs
-                r00 = cs + x * x * t
-                r01 = x * y * t - z * sn
-                r02 = x * z * t + y * sn
-                r10 = y * x * t + z * sn
-                r11 = cs + y * y * t
-                r12 = y * z * t - x * sn
-                r20 = z * x * t - y * sn
-                r21 = z * y * t + x * sn
-                r22 = cs + z * z * t
-                ax, ay, az = m_anchor[m, 0], m_anchor[m, 1], m_anchor[m, 2]
-                t0 = ax - (r00 * ax + r01 * ay + r02 * az)
-                t1 = ay - (r10 * ax + r11 * ay + r12 * az)
-                t2 = az - (r20 * ax + r21 * ay + r22 * az)
-            for i in range(3):
-                a0, a1, a2, a3 = poses[l, i, 0], poses[l, i, 1], poses[l, i, 2], poses[l, i, 3]
-                poses[l, i, 0] = a0 * r00 + a1 * r10 + a2 * r20
-                poses[l, i, 1] = a0 * r01 + a1 * r11 + a2 * r21
-                poses[l, i, 2] = a0 * r02 + a1 * r12 + a2 * r22
-                poses[l, i, 3] = a0 * t0 + a1 * t1 + a2 * t2 + a3
+            apply_motion(poses, l, m_kind[m], m_axis[m, 0], m_axis[m, 1], m_axis[m, 2], m_anchor[m, 0],
+                         m_anchor[m, 1], m_anchor[m, 2], value)
 
 
 @_inline

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..cache import cached
 from ..errors import HandDescriptionError
+from ..model.hands.fk_kernel import PRISMATIC, REVOLUTE
 
 __all__ = ["ParticleLayout", "HandTables", "hand_tables", "GROUP_SIZE"]
 
@@ -93,7 +94,7 @@ class HandTables:
     pre: np.ndarray              # (F, Lmax, 4, 4) constant parent pose @ origin, or origin
     m_start: np.ndarray          # (F, Lmax) int
     m_count: np.ndarray          # (F, Lmax) int
-    m_kind: np.ndarray           # (M,) int, 0 revolute, 1 prismatic
+    m_kind: np.ndarray           # (M,) int, fk_kernel.REVOLUTE (0) or PRISMATIC (1)
     m_axis: np.ndarray           # (M, 3)
     m_anchor: np.ndarray         # (M, 3)
     m_index: np.ndarray          # (M,) int, full index
@@ -273,7 +274,7 @@ def _build(hand) -> HandTables:
         layout=layout, lower=_ro(lower), upper=_ro(upper), full_a=_ro(hand.full_matrix), full_b=_ro(hand.full_offset),
         n_links=_ro(n_links, np.int64), finger_link=_ro(finger_link, np.int64), parent=_ro(parent, np.int64),
         pre=_ro(pre), m_start=_ro(m_start, np.int64), m_count=_ro(m_count, np.int64),
-        m_kind=_ro([0 if m.kind == "revolute" else 1 for m in motions], np.int64),
+        m_kind=_ro([REVOLUTE if m.kind == "revolute" else PRISMATIC for m in motions], np.int64),
         m_axis=_ro([m.axis for m in motions] or empty3), m_anchor=_ro([m.anchor for m in motions] or empty3),
         m_index=_ro([m.index for m in motions], np.int64), m_ref=_ro([m.ref for m in motions]),
         g_start=_ro(g_start, np.int64), g_count=_ro(g_count, np.int64),

@@ -141,8 +141,9 @@ def disturb(model, data, body: int, settings: SimulationSettings, ref_pos: np.nd
     distance from ``ref_pos`` (3,) m and the turn from ``ref_quat`` (4,) (the planned
     pose); the direction fails (and stops) once the shift reaches ``max_shift`` or the
     turn ``max_turn``, and every direction fails once the physics went unstable
-    (:func:`instabilities`: in the closing or squeeze, or in an earlier direction). ``should_stop`` is polled before each direction; ``observer(name,
-    model, data)``, when given, sees the state at the end of each direction.
+    (:func:`instabilities`: in the closing or squeeze, or in an earlier direction).
+    ``should_stop`` is polled before each direction; ``observer(name, model, data)``, when
+    given, sees the state at the end of each direction.
 
     Returns ``[(direction, shift m, turn rad, held), ...]``.
     """

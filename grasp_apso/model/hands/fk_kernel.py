@@ -9,12 +9,13 @@ hand a hundred times and more per plan. Here the tree is flattened once per hand
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-__all__ = ["FlatTree", "flat_tree", "link_poses"]
+__all__ = ["FlatTree", "flat_tree", "link_poses", "apply_motion", "REVOLUTE", "PRISMATIC"]
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")
@@ -53,8 +54,8 @@ def flat_tree(link_parents, origins, motions, root_inverse) -> FlatTree:
     start[1:] = np.cumsum([len(ms) for ms in motions])
 
     def arr(values, dtype=np.float64, shape=None):
-        out = np.ascontiguousarray(np.array(values, dtype=dtype).reshape(shape) if shape else
-                                   np.array(values, dtype=dtype))
+        out = np.ascontiguousarray(np.array(values, dtype=dtype))
+        out = out.reshape(shape) if shape else out
         out.flags.writeable = False
         return out
 
@@ -88,48 +89,52 @@ def _product(a, b, out):
     out[3, 3] = 1.0
 
 
+@_inline
+def apply_motion(poses, l, kind, x, y, z, ax, ay, az, value):
+    """poses[l] = poses[l] @ the motion's transform, in place, on scalars (no array views):
+    a revolute motion turns ``value`` rad about the unit axis (x, y, z) through the anchor
+    (ax, ay, az), a prismatic one moves ``value`` m along it. The one implementation of a
+    joint motion, shared by :func:`_walk` and the decoder's finger kernel
+    (:func:`grasp_apso.geometry.any_hand_kernels.finger_poses`)."""
+    if kind == PRISMATIC:
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+        t0, t1, t2 = value * x, value * y, value * z
+    else:  # Rodrigues, then about the anchor: t = a - R a
+        sn, cs = math.sin(value), math.cos(value)
+        t = 1.0 - cs
+        r00 = cs + x * x * t
+        r01 = x * y * t - z * sn
+        r02 = x * z * t + y * sn
+        r10 = y * x * t + z * sn
+        r11 = cs + y * y * t
+        r12 = y * z * t - x * sn
+        r20 = z * x * t - y * sn
+        r21 = z * y * t + x * sn
+        r22 = cs + z * z * t
+        t0 = ax - (r00 * ax + r01 * ay + r02 * az)
+        t1 = ay - (r10 * ax + r11 * ay + r12 * az)
+        t2 = az - (r20 * ax + r21 * ay + r22 * az)
+    for i in range(3):
+        a0, a1, a2, a3 = poses[l, i, 0], poses[l, i, 1], poses[l, i, 2], poses[l, i, 3]
+        poses[l, i, 0] = a0 * r00 + a1 * r10 + a2 * r20
+        poses[l, i, 1] = a0 * r01 + a1 * r11 + a2 * r21
+        poses[l, i, 2] = a0 * r02 + a1 * r12 + a2 * r22
+        poses[l, i, 3] = a0 * t0 + a1 * t1 + a2 * t2 + a3
+
+
 @_jit
 def _walk(full, parents, origins, start, kind, axis, anchor, index, ref, root_inverse, out):
-    local = np.empty((4, 4))
-    pose = np.empty((4, 4))
     tmp = np.empty((4, 4))
     for p in range(full.shape[0]):
+        poses = out[p]
         for i in range(parents.shape[0]):
             if parents[i] < 0:
-                pose[:, :] = origins[i]
+                poses[i] = origins[i]
             else:
-                _product(out[p, parents[i]], origins[i], pose)
+                _product(poses[parents[i]], origins[i], poses[i])
             for k in range(start[i], start[i + 1]):
-                value = full[p, index[k]] - ref[k]
-                local[:, :] = 0.0
-                local[3, 3] = 1.0
-                x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-                if kind[k] == REVOLUTE:
-                    # Rodrigues: R = I + s K + (1 - c) K^2, K the axis' cross-product matrix
-                    s, c = np.sin(value), np.cos(value)
-                    v = 1.0 - c
-                    local[0, 0] = 1.0 - v * (y * y + z * z)
-                    local[0, 1] = -s * z + v * x * y
-                    local[0, 2] = s * y + v * x * z
-                    local[1, 0] = s * z + v * x * y
-                    local[1, 1] = 1.0 - v * (x * x + z * z)
-                    local[1, 2] = -s * x + v * y * z
-                    local[2, 0] = -s * y + v * x * z
-                    local[2, 1] = s * x + v * y * z
-                    local[2, 2] = 1.0 - v * (x * x + y * y)
-                    for r in range(3):  # about the anchor: t = a - R a
-                        local[r, 3] = anchor[k, r] - (local[r, 0] * anchor[k, 0] + local[r, 1] * anchor[k, 1]
-                                                      + local[r, 2] * anchor[k, 2])
-                else:
-                    local[0, 0] = 1.0
-                    local[1, 1] = 1.0
-                    local[2, 2] = 1.0
-                    local[0, 3] = value * x
-                    local[1, 3] = value * y
-                    local[2, 3] = value * z
-                _product(pose, local, tmp)
-                pose[:, :] = tmp
-            out[p, i] = pose
+                apply_motion(poses, i, kind[k], axis[k, 0], axis[k, 1], axis[k, 2], anchor[k, 0], anchor[k, 1],
+                             anchor[k, 2], full[p, index[k]] - ref[k])
         for i in range(parents.shape[0]):  # into the root frame, once the children are placed
-            _product(root_inverse, out[p, i], tmp)
-            out[p, i] = tmp
+            _product(root_inverse, poses[i], tmp)
+            poses[i] = tmp
