@@ -103,7 +103,7 @@ DEX_URDF = Path(os.environ.get("DEX_URDF", "/work/extern/dex-urdf/robots/hands")
 DEX_HANDS = {"allegro": "allegro_hand/allegro_hand_right.urdf", "leap": "leap_hand/leap_hand_right.urdf",
              "ability": "ability_hand/ability_hand_right.urdf", "schunk": "schunk_hand/schunk_svh_hand_right.urdf",
              "barrett": "barrett_hand/bhand_model.urdf", "inspire_urdf": "inspire_hand/inspire_hand_right.urdf",
-             "shadow_urdf": "shadow_hand/shadow_hand_right.urdf"}
+             "shadow_urdf": "shadow_hand/shadow_hand_right.urdf", "dclaw": "dclaw_gripper/dclaw_gripper.urdf"}
 _HANDS: dict = {}
 
 

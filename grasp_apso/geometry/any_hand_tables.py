@@ -265,10 +265,9 @@ def _build(hand) -> HandTables:
     else:
         palm_bound = np.array([0.0, 0.0, 0.0, -1.0])
     pairs = _overlap_pairs(hand, finger_links, rest[0])
-    basis, center, reach = _palm_frame(hand)
+    basis, center, reach, front = _palm_frame(hand)
     lower = np.concatenate([WRIST_LOWER, [0.0], hand.lower])
-    upper = np.concatenate([WRIST_UPPER, [float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX))],
-                            hand.upper])
+    upper = np.concatenate([WRIST_UPPER, [standoff_range(reach, front)], hand.upper])
     empty3 = np.zeros((0, 3))
     return HandTables(
         layout=layout, lower=_ro(lower), upper=_ro(upper), full_a=_ro(hand.full_matrix), full_b=_ro(hand.full_offset),
@@ -396,10 +395,18 @@ def _opposition_point(hand, z: np.ndarray, face: float) -> np.ndarray | None:
     return pads[keep].mean(axis=(0, 1))
 
 
-def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float]:
+def standoff_range(reach: float, front: float) -> float:
+    """The standoff's upper bound (m): the pads' reach (``REACH_FRACTION`` of it, within
+    [STANDOFF_MIN, STANDOFF_MAX]), or where the open pads stand in front of the palm face
+    (``front``) when that is further: a claw's fingers extend along the palm normal and
+    close in front of their own tips, far beyond the reach of a hand's."""
+    return max(float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX)), float(front))
+
+
+def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The palm frame (x toward the fingers, z the palm normal) in the root frame, the
-    grasp centre on the palm face (under where the pads meet: :func:`_opposition_point`) and
-    the pads' reach (m)."""
+    grasp centre on the palm face (under where the pads meet: :func:`_opposition_point`),
+    the pads' reach (m) and the nearest open pad's height in front of the palm face (m)."""
     z = np.asarray(hand.palm_normal, float)
     z = z / np.linalg.norm(z)
     fractions = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -427,4 +434,5 @@ def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float]:
     # Reach: half the longest finger (its first link's origin to its pad, open).
     bases = [poses[0, hand.link_index(hand.finger_links(f)[0]), :3, 3] for f in hand.fingers]
     reach = 0.5 * float(max(np.linalg.norm(pads[0, i] - b) for i, b in enumerate(bases)))
-    return np.stack([x, y, z], axis=1), lateral + face * z, reach
+    front = float((pads[0] @ z).min()) - face
+    return np.stack([x, y, z], axis=1), lateral + face * z, reach, front

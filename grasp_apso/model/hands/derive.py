@@ -12,7 +12,8 @@
   Which sense closes: first from the joint ranges (fingers flex further than they
   extend), then, once the thumb and the palm normal are known, from the geometry (the
   tip moves toward the palm normal; the thumb's tip toward the other fingers' tips)
-  wherever that is clear.
+  wherever that is clear; a finger that extends along the palm normal (a claw's) with
+  ranges that do not say, toward the other fingers' tips across the normal.
 - Thumb: the finger whose closing motion opposes the others' most.
 - Palm normal: from the root's collision geometry toward the centre of the fingertips of
   the closed hand, made perpendicular to the direction the straight fingers extend in when
@@ -36,6 +37,9 @@ __all__ = ["find_root", "finger_tips", "FingerSemantics", "derive_fingers", "fin
 
 _SIDEWAYS_COS = math.cos(math.radians(45.0))
 _CLEAR_COS = 0.25
+#: A finger's joint ranges vote for a closing sense by how much further its flexion
+#: joints turn one way than the other (rad); within this they do not say.
+_WEAK_VOTE = 0.2
 
 
 def _children(raw: RawHand) -> dict[str | None, list[str]]:
@@ -94,10 +98,41 @@ def find_root(raw: RawHand) -> str:
 
 
 def finger_tips(raw: RawHand, root: str) -> list[str]:
-    """The geometric leaves below ``root`` with at least two movable joints, file order."""
+    """The fingertip links below ``root``, file order: per geometric leaf with at least two
+    movable joints above it, the tip link of its body (:func:`_tip_link`); leaves that hang
+    by fixed joints off a link that moves further links (a tactile sensor on a phalanx)
+    are no fingers."""
     children = _children(raw)
-    tips = {name for name, count in _leaves_with_joints(raw, root, children) if count >= 2}
+    by_name = {link.name: link for link in raw.links}
+    tips = {_tip_link(leaf, children, by_name) for leaf, count in _leaves_with_joints(raw, root, children)
+            if count >= 2}
     return [link.name for link in raw.links if link.name in tips]
+
+
+def _tip_link(leaf: str, children, by_name) -> str | None:
+    """The fingertip link of a geometric leaf's body (the nearest link with a movable
+    joint, the leaf included, and the links fixed below it): None when a movable joint
+    lies below that link; else the body's link whose collision geometry reaches farthest
+    from the moving link's origin (the leaf on a tie): a fingertip with a sensor pad fixed
+    inside it (dex-urdf's Allegro with FSRs) keeps the fingertip."""
+    moving = leaf
+    while not by_name[moving].joints and by_name[moving].parent is not None:
+        moving = by_name[moving].parent
+    body, stack = [], [(moving, np.eye(4))]
+    while stack:
+        name, pose = stack.pop()
+        if name != moving and by_name[name].joints:
+            return None
+        body.append((name, pose))
+        stack.extend((c, pose @ by_name[c].origin) for c in children.get(name, []))
+    best, far = leaf, -1.0
+    for name, pose in body:
+        for g in by_name[name].geoms:
+            v = g.to_trimesh().vertices @ pose[:3, :3].T + pose[:3, 3]
+            d = float(np.linalg.norm(v, axis=1).max())
+            if d > far + 1e-9 or (abs(d - far) <= 1e-9 and name == leaf):
+                best, far = name, d
+    return best
 
 
 def finger_label(*candidates: list[str]) -> list[str]:
@@ -220,17 +255,28 @@ def derive_fingers(hand, tips: list[str], overrides: dict) -> tuple[list[FingerS
 
     # ---- palm normal: from the palm toward the closed fingertips
     normal = overrides.get("palm_normal")
+    claw = False  # a finger closes across the normal, toward the others (below)
     for _ in range(2):
         if overrides.get("palm_normal") is None:
-            normal = _palm_normal(hand, info, tip_points, q0, thumb_f)
+            # A claw's fingers extend along the palm normal and curl back past the palm,
+            # so the closed tips do not show it: the straight fingers' direction does.
+            normal = (_unit(np.mean([_unit(tip0[f] - i["base"]) for f, i in enumerate(info)], axis=0)) if claw
+                      else _palm_normal(hand, info, tip_points, q0, thumb_f))
         # Stage 2: geometric closing sense where it is clear.
         others = np.mean([tip0[g] for g in range(len(tips)) if g != thumb_f], axis=0)
         for f, i in enumerate(info):
             target = _unit(others - tip0[f]) if f == thumb_f else normal
             c = float(np.dot(_unit(i["curl"]), target))
+            if abs(c) <= _CLEAR_COS and f != thumb_f and abs(i["vote"]) <= _WEAK_VOTE:
+                # A finger that extends along the palm normal (a claw's) and whose ranges
+                # do not say which way it flexes: its tip closes toward the other tips,
+                # across the normal.
+                claw = True
+                rest = np.mean([tip0[g] for g in range(len(tips)) if g != f], axis=0) - tip0[f]
+                c = float(np.dot(_unit(i["curl"]), _unit(rest - float(np.dot(rest, normal)) * normal)))
             if abs(c) > _CLEAR_COS:
                 new = 1.0 if c > 0 else -1.0
-                if new != i["sigma"] and abs(i["vote"]) > 0.2:
+                if new != i["sigma"] and abs(i["vote"]) > _WEAK_VOTE:
                     notes.append(f"finger {i['tip']}: closing sense from the geometry, against the joint ranges")
                 i["sigma"] = new
 

@@ -20,6 +20,10 @@ from .model import Coupling, Motion, readonly
 
 __all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "rigid"]
 
+#: A leader whose followers' limits leave it a range narrower than this (rad or m) is held
+#: (:func:`_pinned_leaders`).
+PINNED_RANGE = 1e-3
+
 
 def rigid(rotation: np.ndarray, translation) -> np.ndarray:
     """A (4, 4) pose from a (3, 3) rotation and a (3,) translation."""
@@ -115,6 +119,39 @@ def _resolve(couplings: list[Coupling]) -> dict[str, tuple[str, float, float]]:
     return out
 
 
+def _pinned_leaders(raw: RawHand, joints: list[RawJoint], resolved: dict, held: set[str],
+                    fixed: dict[str, float]) -> dict[str, float]:
+    """Leaders whose URDF mimic followers' own limits leave them no range (dex-urdf's left Schunk SVH:
+    ``j5`` in [-0.99, 0] mimics the thumb opposition in [0, 0.99] with multiplier 1): each
+    is held at the value of its range nearest to what the followers allow (a controller
+    and MuJoCo's URDF import enforce the follower's limits too), with a note."""
+    by_name = {j.name: j for j in joints}
+    # URDF mimics only: an MJCF's joint equalities and tendons are soft, and its files rely
+    # on that (robosuite's Jaco and Robotiq S grippers couple joints past their ranges).
+    mimics = {c.follower for c in raw.couplings if c.source.endswith(" mimic")}
+    allowed: dict[str, list[float]] = {}
+    for follower, (leader, mult, off) in resolved.items():
+        if follower not in mimics:
+            continue
+        fj, lj = by_name.get(follower), by_name.get(leader)
+        if (fj is None or lj is None or fj.lower is None or fj.upper is None or lj.lower is None or lj.upper is None
+                or mult == 0.0 or leader in held or leader in fixed):
+            continue
+        lo, hi = sorted(((fj.lower - off) / mult, (fj.upper - off) / mult))
+        bounds = allowed.setdefault(leader, [lj.lower, lj.upper])
+        bounds[0], bounds[1] = max(bounds[0], lo), min(bounds[1], hi)
+    out = {}
+    for leader, (lo, hi) in allowed.items():
+        if hi - lo > PINNED_RANGE:
+            continue
+        lj = by_name[leader]
+        value = float(np.clip(0.5 * (lo + hi), lj.lower, lj.upper))
+        out[leader] = value
+        raw.notes.append(f"joint {leader}: held at {value:.4g}: the limits of the joints that mimic it leave it "
+                         f"no range")
+    return out
+
+
 def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> Kinematics:
     """The kinematic arrays of ``raw``; ``held`` joints (above the root) are fixed at
     ``hold_values`` (default 0 clipped into range) and not actuated.
@@ -153,6 +190,7 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
             if name not in joint_names:
                 raise HandDescriptionError(f"joint {name!r}: named by a coupling but not a movable joint", field=name)
     fixed = dict(raw.fixed_values)
+    fixed.update(_pinned_leaders(raw, joints, resolved, held, fixed))
     actuated = [j for j in joints if j.name not in resolved and j.name not in held and j.name not in fixed]
     lower, upper = [], []
     for j in actuated:

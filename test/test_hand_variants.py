@@ -1,0 +1,182 @@
+"""Hand descriptions as the field writes them beyond the usual five-finger hand: tactile
+sensor links fixed on the phalanges, a mimic joint whose own limits contradict its
+leader's, and a three-finger claw whose fingers extend along the palm normal (dex-urdf's
+Allegro with FSRs, its left Schunk SVH and its D'Claw have these; the files here are
+written by the test, from the Allegro-like hand of ``hand_files`` or from scratch).
+
+The claw's plans are checked without the planner's geometry: python-fcl on the URDF's
+own collision boxes and spheres placed by yourdfpy's kinematics against the table.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import fcl
+import numpy as np
+import pytest
+import yourdfpy
+
+from grasp_apso.model.builtin import builtin
+from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.scene import Scene
+from grasp_apso.search.planner import PlanOptions, plan
+from hand_files import write_allegro_like
+
+
+@pytest.fixture(scope="module")
+def allegro_file(tmp_path_factory):
+    return write_allegro_like(tmp_path_factory.mktemp("allegro"), "none")
+
+
+def _sensor(name: str, parent: str, xyz: tuple, size: tuple) -> str:
+    return (f'  <joint name="{name}_joint" type="fixed"><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" rpy="0 0 0"/>'
+            f'<parent link="{parent}"/><child link="{name}"/></joint>\n'
+            f'  <link name="{name}"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry>'
+            f'<box size="{size[0]} {size[1]} {size[2]}"/></geometry></collision></link>\n')
+
+
+def test_sensor_links_on_the_phalanges_are_no_fingers(allegro_file, tmp_path):
+    """A box fixed on every proximal and middle link (a tactile pad on a phalanx: a leaf
+    with geometry and two or more joints above it) and one inside each fingertip sphere:
+    the same four fingers, tips, closing senses and thumb as without them."""
+    text = allegro_file.read_text()
+    sensors = ""
+    for f in ("index", "middle", "ring", "thumb"):
+        for part in ("proximal", "middle"):
+            sensors += _sensor(f"{f}_{part}_fsr", f"{f}_{part}", (0.011, 0.0, 0.02), (0.003, 0.02, 0.015))
+        sensors += _sensor(f"{f}_tip_fsr", f"{f}_tip", (0.004, 0.0, 0.0), (0.003, 0.012, 0.012))
+    path = tmp_path / "allegro_fsr.urdf"
+    path.write_text(text.replace("</robot>", sensors + "</robot>"))
+    plain, sensed = load_hand(allegro_file, spheres=False), load_hand(path, spheres=False)
+    assert len(sensed.links) == len(plain.links) + 12
+    assert [f.tip_link for f in sensed.fingers] == [f.tip_link for f in plain.fingers]
+    assert [f.closing for f in sensed.fingers] == [f.closing for f in plain.fingers]
+    assert [f.is_thumb for f in sensed.fingers] == [f.is_thumb for f in plain.fingers]
+    np.testing.assert_allclose(sensed.palm_normal, plain.palm_normal, atol=1e-9)
+
+
+def test_a_leader_that_its_followers_limits_leave_no_range_is_held(tmp_path):
+    """The coupled Allegro-like hand with the index distal joint (mimic of the middle one,
+    multiplier 1) limited to [-1.709, -0.174]: the middle joint's own range [-0.174, 1.709]
+    leaves one value, -0.174. The middle joint is held there (no longer actuated, a note),
+    and the follower stays within its limits in every posture of the hand."""
+    path = write_allegro_like(tmp_path, "none", coupled=True)
+    text = path.read_text()
+    old = '<mimic joint="index_joint_2"'
+    assert old in text
+    head, tail = text.split(old)
+    limit = head.rsplit("<limit", 1)
+    head = limit[0] + '<limit lower="-1.709" upper="-0.174" effort="0.7" velocity="7"/>\n    '
+    path.write_text(head + old + tail)
+    hand = load_hand(path, spheres=False)
+    assert "index_joint_2" not in hand.actuated_joints
+    assert any("index_joint_2" in note and "held" in note for note in hand.notes)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(hand.lower, hand.upper, (200, len(hand.lower)))
+    full = np.stack([hand.full_positions(row) for row in q])
+    follower = hand.joint_names.index("index_joint_3")
+    assert np.all(full[:, follower] <= -0.174 + 1e-9) and np.all(full[:, follower] >= -1.709 - 1e-9)
+    index = next(f for f in hand.fingers if f.tip_link == "index_tip")
+    assert "index_joint_2" not in index.joints and len(index.joints) >= 2
+
+
+# ---------------------------------------------------------------------------- the claw
+_CLAW_RADIUS = 0.045
+_CLAW_LENGTHS = (0.07, 0.06)
+_CLAW_TIP = 0.011
+
+
+def _write_claw(folder: Path) -> Path:
+    """Three fingers at 120 degrees around the palm normal (+z), each a base joint turning
+    it sideways and two flexion joints of range [-1.57, 1.57] (the ranges do not say
+    which way closes), straight along +z at zero; the second finger's flexion axes point
+    the other way (as the D'Claw's do), so the same joint sign closes one finger and
+    opens another."""
+    lines = ['<?xml version="1.0"?>', '<robot name="claw">',
+             '  <link name="base"><collision><origin xyz="0 0 -0.01" rpy="0 0 0"/><geometry>'
+             '<cylinder radius="0.07" length="0.02"/></geometry></collision></link>']
+    for f in range(3):
+        angle = 2.0 * math.pi * f / 3.0
+        radial = np.array([math.cos(angle), math.sin(angle), 0.0])
+        tangent = np.cross([0.0, 0.0, 1.0], radial)
+        sign = -1.0 if f == 1 else 1.0
+        parent, xyz = "base", _CLAW_RADIUS * radial
+        for k, length in enumerate((0.02, *_CLAW_LENGTHS)):
+            name = f"f{f}_link{k}"
+            axis = radial if k == 0 else sign * tangent
+            limits = (-0.3, 0.3) if k == 0 else (-1.57, 1.57)
+            lines.append(f'  <joint name="f{f}_joint{k}" type="revolute"><origin xyz="{xyz[0]:.9g} {xyz[1]:.9g} '
+                         f'{xyz[2]:.9g}" rpy="0 0 0"/><parent link="{parent}"/><child link="{name}"/>'
+                         f'<axis xyz="{axis[0]:.9g} {axis[1]:.9g} {axis[2]:.9g}"/>'
+                         f'<limit lower="{limits[0]}" upper="{limits[1]}" effort="2" velocity="5"/></joint>')
+            lines.append(f'  <link name="{name}"><collision><origin xyz="0 0 {length / 2:.9g}" rpy="0 0 0"/>'
+                         f'<geometry><box size="0.016 0.016 {length:.9g}"/></geometry></collision></link>')
+            parent, xyz = name, (0.0, 0.0, length)
+        lines.append(f'  <joint name="f{f}_tip_joint" type="fixed"><origin xyz="0 0 {_CLAW_LENGTHS[-1]:.9g}" '
+                     f'rpy="0 0 0"/><parent link="{parent}"/><child link="f{f}_tip"/></joint>')
+        lines.append(f'  <link name="f{f}_tip"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry>'
+                     f'<sphere radius="{_CLAW_TIP}"/></geometry></collision></link>')
+    lines.append("</robot>")
+    path = folder / "claw.urdf"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def claw_file(tmp_path_factory):
+    return _write_claw(tmp_path_factory.mktemp("claw"))
+
+
+def _tip_centres(hand, q: np.ndarray) -> np.ndarray:
+    poses = hand.link_transforms_batch(q[None])[0]
+    return np.array([poses[hand.link_index(f.tip_link), :3, 3] for f in hand.fingers])
+
+
+def test_a_claw_closes_its_fingers_toward_each_other(claw_file):
+    """Closing moves every tip toward the claw's axis (the open tips stand 45 mm off it),
+    whatever the sign of its flexion axes, and the palm normal is the axis (+z)."""
+    hand = load_hand(claw_file, spheres=False)
+    assert len(hand.fingers) == 3
+    np.testing.assert_allclose(hand.palm_normal, [0.0, 0.0, 1.0], atol=0.05)
+    open_tips = _tip_centres(hand, np.clip(0.0, hand.lower, hand.upper))
+    np.testing.assert_allclose(np.linalg.norm(open_tips[:, :2], axis=1), _CLAW_RADIUS, atol=1e-9)
+    half = _tip_centres(hand, hand.closed_configuration(0.1))  # 18 degrees of each flexion joint
+    assert np.all(np.linalg.norm(half[:, :2], axis=1) < _CLAW_RADIUS - 0.02)
+
+
+def _table_distance(urdf: yourdfpy.URDF, wrist: np.ndarray, table_z: float) -> float:
+    """Least python-fcl distance (m) of the URDF's own collision boxes, cylinders and
+    spheres, placed by yourdfpy at the grasp, to a 4 m box whose top face is the table."""
+    top = fcl.CollisionObject(fcl.Box(4.0, 4.0, 1.0), fcl.Transform(np.array([0.0, 0.0, table_z - 0.5])))
+    least = math.inf
+    for name, link in urdf.link_map.items():
+        pose = wrist @ urdf.get_transform(name, urdf.base_link)
+        for c in link.collisions:
+            g = c.geometry
+            shape = (fcl.Box(*g.box.size) if g.box is not None else fcl.Cylinder(g.cylinder.radius, g.cylinder.length)
+                     if g.cylinder is not None else fcl.Sphere(g.sphere.radius))
+            at = pose @ (c.origin if c.origin is not None else np.eye(4))
+            obj = fcl.CollisionObject(shape, fcl.Transform(at[:3, :3], at[:3, 3]))
+            least = min(least, fcl.distance(obj, top, fcl.DistanceRequest(), fcl.DistanceResult()))
+    return least
+
+
+def test_a_claw_plans_grasps_clear_of_the_table(claw_file):
+    """The claw plans the built-in sphere resting on a table: grasps with force closure, two
+    or more contacts, and the whole claw (the URDF's own geometry, yourdfpy's kinematics,
+    python-fcl) at least the clearance above the table."""
+    hand = load_hand(claw_file)
+    sphere = builtin("sphere")
+    table = Scene.table_under(np.asarray(sphere.mesh.vertices))
+    options = PlanOptions(particles=30, iterations=20, max_grasps=3)
+    result = plan(sphere, options=options, rng=np.random.default_rng(0), hand=hand, scene=table)
+    assert result.candidates and result.candidates[0].force_closure
+    urdf = yourdfpy.URDF.load(str(claw_file), build_collision_scene_graph=False, load_meshes=False)
+    table_z = float(np.asarray(sphere.mesh.vertices)[:, 2].min())
+    for cand in result.candidates:
+        assert len(cand.contacts) >= 2
+        cfg = {j: float(v) for j, v in zip(hand.actuated_joints, cand.joint_positions)}
+        urdf.update_cfg(cfg)
+        assert _table_distance(urdf, np.asarray(cand.wrist_pose), table_z) >= options.clearance - 5e-4
