@@ -440,6 +440,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="particles 30, iterations 20, 1 seed")
     parser.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1 (default 3; --quick: 1)")
+    parser.add_argument("--first-seed", type=int, default=0, help="seeds from this one on (default 0)")
     parser.add_argument("--poses", type=int, default=1, help="identity + N-1 random rotations about z")
     parser.add_argument("--algorithms", nargs="+", default=["apso", "pso"], choices=["apso", "pso"])
     parser.add_argument("--objects", nargs="+", default=None, help="default: 4 built-ins + every mesh")
@@ -478,7 +479,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.dexgraspbench and args.hand in ("paper", ""):
         raise SystemExit("--dexgraspbench: for a general hand (--hand); the paper hand keeps its published check")
     tasks = [(name, k, pose, alg, seed, swarm, args.simulate, args.hand, args.dexgraspbench) for alg in args.algorithms for name in objects
-             for k, pose in enumerate(poses) for seed in range(seeds)]
+             for k, pose in enumerate(poses) for seed in range(args.first_seed, args.first_seed + seeds)]
     t0 = time.perf_counter()
     load0 = os.getloadavg()[0]
     if args.workers > 1:
@@ -496,7 +497,7 @@ def main(argv: list[str] | None = None) -> int:
     out.write_text(json.dumps({
         "benchmark": "held_rate", "hand": args.hand, "simulate": args.simulate,
         "dexgraspbench": DEXGRASPBENCH if args.dexgraspbench else None, "command": " ".join(["bench/held_rate.py", *(argv or sys.argv[1:])]),
-        "swarm": swarm or "default", "seeds": seeds, "poses": [p.tolist() for p in poses],
+        "swarm": swarm or "default", "seeds": list(range(args.first_seed, args.first_seed + seeds)), "poses": [p.tolist() for p in poses],
         "wall_s": round(wall, 1), "summary": summary, "runs": rows}, indent=1, default=float) + "\n")
     print(f"wrote {out}")
     return 0

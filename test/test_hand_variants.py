@@ -146,6 +146,23 @@ def test_a_claw_closes_its_fingers_toward_each_other(claw_file):
     assert np.all(np.linalg.norm(half[:, :2], axis=1) < _CLAW_RADIUS - 0.02)
 
 
+def test_a_claw_reaches_ahead_of_its_palm_and_a_hand_does_not(claw_file, allegro_file):
+    """The claw's standoff range reaches its open pads (150 mm in front of the base's face)
+    and GRG pre-shapes it less closed (``closes_ahead``); the Allegro-like hand keeps the
+    reach-based range (at most STANDOFF_MAX) and its pre-shapes."""
+    from grasp_apso.geometry.any_hand_decoder import make_any_hand_model
+    from grasp_apso.geometry.any_hand_tables import STANDOFF_MAX
+    from grasp_apso.search.any_hand_grg import CLAW_OPEN_FRACTION, OPEN_FRACTION, _open_fraction
+
+    sphere = builtin("sphere")
+    claw = make_any_hand_model(load_hand(claw_file), sphere)
+    hand = make_any_hand_model(load_hand(allegro_file), sphere)
+    assert claw.tables.closes_ahead and not hand.tables.closes_ahead
+    assert claw.tables.upper[claw.layout.standoff] >= sum(_CLAW_LENGTHS) + 0.02 - 1e-3  # base face at z 0
+    assert hand.tables.upper[hand.layout.standoff] <= STANDOFF_MAX
+    assert (_open_fraction(claw), _open_fraction(hand)) == (CLAW_OPEN_FRACTION, OPEN_FRACTION)
+
+
 def _table_distance(urdf: yourdfpy.URDF, wrist: np.ndarray, table_z: float) -> float:
     """Least python-fcl distance (m) of the URDF's own collision boxes, cylinders and
     spheres, placed by yourdfpy at the grasp, to a 4 m box whose top face is the table."""

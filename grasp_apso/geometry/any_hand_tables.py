@@ -125,6 +125,10 @@ class HandTables:
     basis: np.ndarray            # (3, 3) columns: palm x, y, z (normal) in the root frame
     grasp_center: np.ndarray     # (3,) root frame, on the palm face
     open_q: np.ndarray           # (n,)
+    #: The open pads stand beyond the hand's reach in front of the palm face (a claw's
+    #: fingers extend along the normal): the standoff reaches them (:func:`standoff_range`)
+    #: and GRG pre-shapes the fingers less closed.
+    closes_ahead: bool = False
 
     @property
     def n_fingers(self) -> int:
@@ -268,6 +272,7 @@ def _build(hand) -> HandTables:
     basis, center, reach, front = _palm_frame(hand)
     lower = np.concatenate([WRIST_LOWER, [0.0], hand.lower])
     upper = np.concatenate([WRIST_UPPER, [standoff_range(reach, front)], hand.upper])
+    closes_ahead = bool(front > float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX)))
     empty3 = np.zeros((0, 3))
     return HandTables(
         layout=layout, lower=_ro(lower), upper=_ro(upper), full_a=_ro(hand.full_matrix), full_b=_ro(hand.full_offset),
@@ -286,7 +291,7 @@ def _build(hand) -> HandTables:
         moving=_ro(moving, np.int64), pad_body=_ro(pad_body, np.int64),
         palm_bound=_ro(palm_bound), palm_groups=_ro(palm_groups, np.int64),
         palm_pose=_ro(np.reshape(palm_pose, (-1, 4, 4))), pairs=_ro(pairs, np.int64).reshape(-1, 4),
-        basis=_ro(basis), grasp_center=_ro(center), open_q=_ro(q_open),
+        basis=_ro(basis), grasp_center=_ro(center), open_q=_ro(q_open), closes_ahead=closes_ahead,
     )
 
 

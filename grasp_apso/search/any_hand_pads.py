@@ -159,13 +159,13 @@ def _samples(model: AnyHandModel, x: np.ndarray, k: int, rng: np.random.Generato
     """k pre-shape variants of every particle x (m, D) -> (k, m, D): half near its
     pre-shape (a Gaussian step of LOCAL_SPREAD of each joint's range), half drawn as GRG
     draws pre-shapes."""
-    from .any_hand_grg import OPEN_FRACTION, _preshape
+    from .any_hand_grg import _open_fraction, _preshape
     t, lay = model.tables, model.layout
     out = np.repeat(x[None], k, axis=0)
     span = (t.upper - t.lower)[lay.joints]
     near = k // 2
     out[:near, :, lay.joints] += rng.normal(0.0, LOCAL_SPREAD, (near, len(x), len(span))) * span
-    far = _preshape(model, (k - near) * len(x), rng, OPEN_FRACTION)
+    far = _preshape(model, (k - near) * len(x), rng, _open_fraction(model))
     out[near:, :, lay.joints] = far.reshape(k - near, len(x), len(span))
     return np.clip(out, t.lower, t.upper)
 
