@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import yourdfpy
 
+from grasp_apso.errors import HandDescriptionError
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.scene import Scene
@@ -80,6 +81,31 @@ def test_a_leader_that_its_followers_limits_leave_no_range_is_held(tmp_path):
     assert np.all(full[:, follower] <= -0.174 + 1e-9) and np.all(full[:, follower] >= -1.709 - 1e-9)
     index = next(f for f in hand.fingers if f.tip_link == "index_tip")
     assert "index_joint_2" not in index.joints and len(index.joints) >= 2
+
+
+def test_a_joint_the_file_locks_is_held_not_refused(allegro_file, tmp_path):
+    """The index finger's abduction with equal limits (0, 0), as files lock a joint: the hand
+    loads, that joint is held at 0 (a note) and the index finger keeps its flexion joints;
+    a lower limit above the upper one is still refused, naming the joint."""
+    text = allegro_file.read_text()
+    head, tail = text.split('<joint name="index_joint_0"')
+    limit_at = tail.index("<limit")
+    end = tail.index("/>", limit_at) + 2
+    locked = tmp_path / "locked.urdf"
+    locked.write_text(head + '<joint name="index_joint_0"' + tail[:limit_at]
+                      + '<limit lower="0" upper="0" effort="0.7" velocity="7"/>' + tail[end:])
+    hand = load_hand(locked, spheres=False)
+    assert "index_joint_0" not in hand.actuated_joints
+    assert any("index_joint_0" in note and "equal" in note for note in hand.notes)
+    index = next(f for f in hand.fingers if f.tip_link == "index_tip")
+    assert index.joints == ("index_joint_1", "index_joint_2", "index_joint_3")
+    full = hand.full_positions(np.clip(0.3, hand.lower, hand.upper))
+    assert full[hand.joint_names.index("index_joint_0")] == 0.0
+    crossed = tmp_path / "crossed.urdf"
+    crossed.write_text(head + '<joint name="index_joint_0"' + tail[:limit_at]
+                       + '<limit lower="0.2" upper="0.1" effort="0.7" velocity="7"/>' + tail[end:])
+    with pytest.raises(HandDescriptionError, match="index_joint_0"):
+        load_hand(crossed, spheres=False)
 
 
 # ---------------------------------------------------------------------------- the claw

@@ -23,6 +23,8 @@ __all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "rigid"
 #: A leader whose followers' limits leave it a range narrower than this (rad or m) is held
 #: (:func:`_pinned_leaders`).
 PINNED_RANGE = 1e-3
+#: A joint whose own limits are this close (rad or m) is locked by its file: held there.
+LOCKED_RANGE = 1e-12
 
 
 def rigid(rotation: np.ndarray, translation) -> np.ndarray:
@@ -190,6 +192,11 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
             if name not in joint_names:
                 raise HandDescriptionError(f"joint {name!r}: named by a coupling but not a movable joint", field=name)
     fixed = dict(raw.fixed_values)
+    for j in joints:  # a joint the file locks (equal limits) moves nothing: held there
+        if (j.name not in resolved and j.name not in held and j.name not in fixed and j.lower is not None
+                and j.upper is not None and math.isfinite(j.lower) and abs(j.upper - j.lower) <= LOCKED_RANGE):
+            fixed[j.name] = float(j.lower)
+            raw.notes.append(f"joint {j.name}: its limits are equal, held at {j.lower:.4g}")
     fixed.update(_pinned_leaders(raw, joints, resolved, held, fixed))
     actuated = [j for j in joints if j.name not in resolved and j.name not in held and j.name not in fixed]
     lower, upper = [], []
