@@ -271,8 +271,8 @@ def _build(hand) -> HandTables:
     pairs = _overlap_pairs(hand, finger_links, rest[0])
     basis, center, reach, front = _palm_frame(hand)
     lower = np.concatenate([WRIST_LOWER, [0.0], hand.lower])
-    upper = np.concatenate([WRIST_UPPER, [standoff_range(reach, front)], hand.upper])
-    closes_ahead = bool(front > float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX)))
+    standoff, closes_ahead = standoff_range(reach, front)
+    upper = np.concatenate([WRIST_UPPER, [standoff], hand.upper])
     empty3 = np.zeros((0, 3))
     return HandTables(
         layout=layout, lower=_ro(lower), upper=_ro(upper), full_a=_ro(hand.full_matrix), full_b=_ro(hand.full_offset),
@@ -400,12 +400,14 @@ def _opposition_point(hand, z: np.ndarray, face: float) -> np.ndarray | None:
     return pads[keep].mean(axis=(0, 1))
 
 
-def standoff_range(reach: float, front: float) -> float:
-    """The standoff's upper bound (m): the pads' reach (``REACH_FRACTION`` of it, within
-    [STANDOFF_MIN, STANDOFF_MAX]), or where the open pads stand in front of the palm face
-    (``front``) when that is further: a claw's fingers extend along the palm normal and
-    close in front of their own tips, far beyond the reach of a hand's."""
-    return max(float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX)), float(front))
+def standoff_range(reach: float, front: float) -> tuple[float, bool]:
+    """The standoff's upper bound (m) and whether the hand closes ahead of its reach: the
+    pads' reach (``REACH_FRACTION`` of it, within [STANDOFF_MIN, STANDOFF_MAX]), or where
+    the open pads stand in front of the palm face (``front``) when that is further: a
+    claw's fingers extend along the palm normal and close in front of their own tips, far
+    beyond the reach of a hand's."""
+    bound = float(np.clip(REACH_FRACTION * reach, STANDOFF_MIN, STANDOFF_MAX))
+    return max(bound, float(front)), bool(front > bound)
 
 
 def _palm_frame(hand) -> tuple[np.ndarray, np.ndarray, float, float]:

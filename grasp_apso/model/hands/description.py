@@ -121,6 +121,15 @@ def _resolve(couplings: list[Coupling]) -> dict[str, tuple[str, float, float]]:
     return out
 
 
+def _leader_bounds(follower: RawJoint, mult: float, off: float) -> tuple[float, float] | None:
+    """The leader's values (lo, hi) that keep ``follower = mult * leader + off`` within the
+    follower's own limits; None when it has none or does not move."""
+    if follower.lower is None or follower.upper is None or mult == 0.0:
+        return None
+    lo, hi = sorted(((follower.lower - off) / mult, (follower.upper - off) / mult))
+    return lo, hi
+
+
 def _pinned_leaders(raw: RawHand, joints: list[RawJoint], resolved: dict, held: set[str],
                     fixed: dict[str, float]) -> dict[str, float]:
     """Leaders whose URDF mimic followers' own limits leave them no range (dex-urdf's left Schunk SVH:
@@ -136,10 +145,12 @@ def _pinned_leaders(raw: RawHand, joints: list[RawJoint], resolved: dict, held: 
         if follower not in mimics:
             continue
         fj, lj = by_name.get(follower), by_name.get(leader)
-        if (fj is None or lj is None or fj.lower is None or fj.upper is None or lj.lower is None or lj.upper is None
-                or mult == 0.0 or leader in held or leader in fixed):
+        if fj is None or lj is None or lj.lower is None or lj.upper is None or leader in held or leader in fixed:
             continue
-        lo, hi = sorted(((fj.lower - off) / mult, (fj.upper - off) / mult))
+        preimage = _leader_bounds(fj, mult, off)
+        if preimage is None:
+            continue
+        lo, hi = preimage
         bounds = allowed.setdefault(leader, [lj.lower, lj.upper])
         bounds[0], bounds[1] = max(bounds[0], lo), min(bounds[1], hi)
     out = {}
@@ -236,11 +247,10 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
     # A leader's range is narrowed so that its followers stay within their own limits.
     lower_a, upper_a = np.array(lower, float), np.array(upper, float)
     for follower, (leader, mult, off) in resolved.items():
-        fj = joints[joint_names.index(follower)]
-        if leader not in act_index or fj.lower is None or fj.upper is None or mult == 0.0:
+        bounds = _leader_bounds(joints[joint_names.index(follower)], mult, off)
+        if leader not in act_index or bounds is None:
             continue
         k = act_index[leader]
-        bounds = sorted(((fj.lower - off) / mult, (fj.upper - off) / mult))
         lo, hi = max(lower_a[k], bounds[0]), min(upper_a[k], bounds[1])
         if lo >= hi:  # a coupling that holds the follower outside its limits: said, not fixed
             raw.notes.append(f"joint {follower}: outside its limits for every value of {leader}")
