@@ -270,3 +270,61 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
         assert result.iterations_run in (options.iterations, options.iterations + second)
         rounds.add(result.iterations_run)
     assert options.iterations + second in rounds  # a second search ran in at least one plan
+
+
+def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
+    """The second search's verified grasps join the first's and the ranking takes the best
+    of both: every returned grasp was verified by one of the two searches, the second
+    search verified only grasps that rank above the first's best class (its floor), and
+    the best returned grasp is in the highest class of both searches' grasps."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_select import select_any
+
+    calls = []
+
+    def recording(*args, **kwargs):
+        prior = args[8] if len(args) > 8 else kwargs.get("prior", ())
+        checked, message = select_any(*args, **kwargs)
+        calls.append((tuple(prior), list(checked)))
+        return checked, message
+
+    monkeypatch.setattr(any_hand_planner, "select_any", recording)
+    obj = builtin("sphere")
+    options = PlanOptions(max_grasps=5)
+    # seed 0: the Allegro-like hand's first search converges on two-finger pinches of the
+    # sphere (no force closure) and a second search runs
+    result = plan(obj, options=options, rng=np.random.default_rng(0), hand=hands["allegro"],
+                  scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
+    assert len(calls) == 2
+    (first_prior, first), (prior, union) = calls
+    assert first_prior == ()
+    assert [id(c) for c in prior] == [id(c) for c in first]
+
+    def rank_class(c):
+        return 3 if c.balanced else 2 if c.force_closure else int(c.valid)
+
+    new = [c for c in union if all(c is not p for p in prior)]
+    assert new, "the second search found grasps above the first's"
+    floor = max(rank_class(c) for c in prior)
+    assert all(rank_class(c) > floor for c in new)
+
+    def verified(cand):
+        return next(c for c in union if np.allclose(c.decoded.root[0], cand.wrist_in_object))
+
+    assert all(any(np.allclose(cand.wrist_in_object, c.decoded.root[0]) for c in union) for cand in result.candidates)
+    assert rank_class(verified(result.candidates[0])) == max(rank_class(c) for c in union)
+
+
+def test_the_analysed_grasps_are_capped_by_groups_of_like_wrists():
+    """A swarm converged on one grasp leaves many near copies of it in the selection's pool:
+    the cap on the grasps analysed counts groups of like wrists, so the distinct grasps
+    after the copies are still analysed (capped by rows, only the copies were)."""
+    from grasp_apso.search.any_hand_select import _first_groups
+
+    rng = np.random.default_rng(4)
+    wrist = np.tile(np.eye(4), (60, 1, 1))
+    wrist[:40, :3, 3] = rng.normal(0.0, 1e-4, (40, 3))            # 40 copies of one wrist
+    wrist[40:, :3, 3] = 0.05 * np.arange(1, 21)[:, None] * np.array([1.0, 0.0, 0.0])  # 20 distinct ones
+    options = PlanOptions()
+    rows = _first_groups(list(range(60)), wrist, 8, options)
+    assert rows == list(range(40)) + list(range(40, 47))  # the copies, then 7 other groups' leaders

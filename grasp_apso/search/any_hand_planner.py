@@ -40,8 +40,9 @@ __all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_h
 SIMULATED_ROUNDS = 2
 #: Without ``simulate``, searches run at most this many times: another search when the
 #: best verified grasp of a round is not balanced robust force closure
-#: (:attr:`~grasp_apso.search.any_hand_select.AnyChecked.balanced`), the round whose best
-#: grasp is in the higher class kept (the first on a tie). Measured (``bench/held_rate.py
+#: (:attr:`~grasp_apso.search.any_hand_select.AnyChecked.balanced`); its verified grasps
+#: join the first round's, ranked together, and it verifies only grasps that can rank above
+#: the first round's best class (``select_any``'s ``prior``). Measured (``bench/held_rate.py
 #: --seeds 3 --hand allegro_like``, 63 plans on a table): balanced best grasps held 43 of
 #: 48, the others 2 of 15; with the hold score ranking, best grasp held 47/63 with one
 #: search, 51/63 with two (the extra search runs for the hard plans only: thin objects
@@ -89,6 +90,7 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
     preparation = time.perf_counter() - t0
     t1 = time.perf_counter()
     first, first_class, evaluations = None, -1, 0
+    first_checked: tuple = ()
     rounds = SIMULATED_ROUNDS if options.simulate else ANALYTIC_ROUNDS
     done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
     for round_ in range(rounds):
@@ -107,8 +109,11 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         evaluations += problem.evaluations
         history.extend(shift(stats) for stats in swarm.history)
         done += swarm.iterations_run
+        # A later round without simulate adds to the first round's verified grasps (the
+        # ranking takes the best of both), verifying only grasps that can rank above them.
+        prior = first_checked if (first is not None and not options.simulate) else ()
         try:
-            checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene)
+            checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene, prior)
         except PlanningError:
             if first is None and (round_ + 1 == rounds or swarm.cancelled):
                 raise
@@ -121,15 +126,13 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
                 break
             first = first or result
         else:
-            best = _best_class(checked)
-            if first is None or best > first_class:
-                first, first_class = result, best
+            first, first_class, first_checked = result, _best_class(checked), tuple(checked)
             if first_class >= BALANCED_CLASS:
                 break
         if swarm.cancelled or (should_stop is not None and should_stop()):
             break
     # simulate: a round with a grasp that held, else the first round that found grasps;
-    # otherwise the first round whose best grasp is in the highest class
+    # otherwise the grasps of every round, ranked together
     return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
                    planning_time=time.perf_counter() - t1)
 

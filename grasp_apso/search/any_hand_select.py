@@ -307,20 +307,28 @@ def _squeeze(model, decoded, obj, mu: float, settings, report=None) -> tuple[np.
     return squeeze, forces
 
 
-def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tuple[list[AnyChecked], str]:
+def select_any(model, problem, swarm, archive, options, pose, obj, scene,
+               prior: tuple[AnyChecked, ...] = ()) -> tuple[list[AnyChecked], str]:
     """Verified candidates: valid and (with a scene) clear of it, only the force-closure
     ones when there are any, and of those only the robust ones (robust epsilon > 0) when
     there are any.
 
     The pool is the swarm's best, the leaders' archive and the particles' personal bests.
-    Up to :data:`ANALYSED` times ``max_grasps`` of them with two or more contacts, in
-    descending fitness, are analysed (:func:`_analyse`, only those that can still be
-    verified); then verified with python-fcl in
-    the order balanced, robust force closure, other force closure, the rest, fitness
+    Those with two or more contacts in the first :data:`ANALYSED` times ``max_grasps``
+    groups of like wrists (:func:`_first_groups`), in descending fitness, are analysed
+    (:func:`_analyse`, only those that can still be verified); then verified with
+    python-fcl in the order balanced, robust force closure, other force closure, the rest, fitness
     within each (stable), distinct wrists only, until :data:`DEFAULT_SPARE` (with
     ``simulate``: :data:`SPARE`) times ``max_grasps`` are kept (:func:`build_result`
     returns the best ``max_grasps`` of them). Without a scene at least the best one even
-    when not valid."""
+    when not valid.
+
+    ``prior``: an earlier round's verified grasps (a search run again because its best
+    grasp was not balanced, :func:`grasp_apso.search.any_hand_planner.plan_any_hand`). They
+    join this round's, which must be distinct from them, and only grasps that can rank
+    above the prior's best class are verified (their python-fcl checks are most of a
+    round's selection time): the balanced ones always, the other force-closure ones only
+    when no prior grasp is force closure, the rest only when none is valid."""
     pool = [np.clip(swarm.best, model.lower, model.upper)]
     if len(archive):
         pool.extend(archive.x)
@@ -335,7 +343,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
-    eligible = [i for i in order if contacts[i] >= 2][:ANALYSED * options.max_grasps]
+    eligible = _first_groups([i for i in order if contacts[i] >= 2], decoded.wrist, ANALYSED * options.max_grasps,
+                             options)
     if not eligible:  # nothing with two contacts: the fittest, to report why
         eligible = [int(order[0])]
     # the grasps whose pads lie on the surface first (stable: by fitness within), so that
@@ -349,10 +358,14 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     rejected = 0
     wanted = (SPARE if options.simulate else DEFAULT_SPARE) * options.max_grasps
 
+    prior = tuple(prior)
+    # the prior's best class (3 balanced, 2 force closure, 1 valid, 0 none; -1 no prior)
+    floor = -1 if not prior else max(3 if c.balanced else 2 if c.force_closure else int(c.valid) for c in prior)
+
     def distinct(one) -> bool:
         return all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3], one.wrist[:, :3, :3],
                                    one.wrist[:, :3, 3], options.min_orientation_gap, options.min_position_gap)[0]
-                   for k in kept)
+                   for k in (*prior, *kept))
 
     def verify(c: AnyChecked) -> None:
         nonlocal first, rejected
@@ -392,14 +405,19 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
         if not c.closure_known:
             _closure(c, options, obj)
         if c.force_closure and c.robust_epsilon > 0.0:
-            verify(c)
+            if floor < 2:
+                verify(c)
         else:
             (fragile if c.force_closure else rest).append(c)
-    for c in fragile + rest:
+    for c in (fragile if floor < 2 else []) + (rest if floor < 1 else []):
         if len(kept) >= wanted:
             break
         if distinct(c.decoded):
             verify(c)
+    if prior:
+        if not kept:
+            raise PlanningError("no grasp beyond the earlier round's", "scene")
+        kept = list(prior) + kept
     if not kept:
         if scene is not None or first is None:
             raise PlanningError(
@@ -428,6 +446,27 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene) -> tup
     if kept[0].note:
         message = (message + "; " if message else "") + kept[0].note
     return kept, message
+
+
+def _first_groups(rows: list[int], wrist: np.ndarray, groups: int, options) -> list[int]:
+    """The rows (in their order) of the first ``groups`` groups of like wrists (each row
+    joins the first earlier group whose leader's wrist it is not distinct from, as
+    ``wrists_distinct``): the grasps the selection may analyse. Capped by rows instead, a
+    swarm converged on one grasp filled the cap with near copies of it (which the selection
+    skips once it is kept) and left its archive's other leaders out: measured on the
+    Allegro-like hand's sphere, seeds 0 and 1, one grasp returned where the archive held 20
+    distinct ones, and a second search run."""
+    leaders: list[int] = []
+    out = []
+    for i in rows:
+        if not leaders or wrists_distinct(wrist[i, :3, :3], wrist[i, :3, 3], wrist[leaders, :3, :3],
+                                          wrist[leaders, :3, 3], options.min_orientation_gap,
+                                          options.min_position_gap).all():
+            if len(leaders) >= groups:
+                continue
+            leaders.append(i)
+        out.append(i)
+    return out
 
 
 def hold_score(checked: list[AnyChecked]) -> np.ndarray:
