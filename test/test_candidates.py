@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from grasp_apso.model.builtin import builtin
-from grasp_apso.search.archive import LeaderArchive, distinct_mask
+from grasp_apso.search.archive import LeaderArchive, distinct_mask, wrist_groups
 from grasp_apso.search.planner import PlanOptions, plan
 from grasp_apso.search.ranking import grasp_quality
 
@@ -34,6 +34,20 @@ def test_distinct_mask_keeps_the_fittest_of_each_neighbourhood():
     # -> suppressed too; 3 is 2 cm away -> kept.
     assert keep.tolist() == [False, True, False, True, False]
     assert distinct_mask(rot, pos, fitness, 1, gap_o, gap_p).tolist() == [False, True, False, False, False]
+
+
+def test_wrist_groups_number_groups_and_members_in_order():
+    """Each wrist joins the first earlier leader it is not distinct from (within both
+    gaps), else leads a new group; members are counted within their group."""
+    gap_o, gap_p = math.radians(20), 0.015
+    rot = np.stack([_rz(0.0), _rz(math.radians(10)), _rz(math.radians(25)), _rz(0.0), _rz(math.radians(30)),
+                    _rz(math.radians(5))])
+    pos = np.array([[0, 0, 0], [0, 0, 0], [0, 0, 0], [0.02, 0, 0], [0, 0, 0], [0.001, 0, 0]], dtype=float)
+    group, member = wrist_groups(rot, pos, gap_o, gap_p)
+    # 1 joins 0 (10 deg); 2 is 25 deg from 0: a new group, which 4 (5 deg from 2) joins;
+    # 3 is 2 cm away: a new group; 5 (5 deg, 1 mm) joins 0
+    assert group.tolist() == [0, 0, 1, 2, 1, 0]
+    assert member.tolist() == [0, 1, 0, 0, 1, 2]
 
 
 def test_archive_is_bounded_sorted_and_ignores_inactive():

@@ -676,8 +676,11 @@ def test_action_cancel_stops_within_one_iteration(ros, action_client):
         seen.append(msg.feedback.progress.iteration)
         first.set()
 
+    # 200 particles: an iteration long enough (about 10 ms) that the cancel's trip through
+    # DDS spans a few of them even on a loaded machine (20 particles: 12 iterations once,
+    # with benchmarks running beside the tests)
     goal_handle = ros.wait(
-        action_client.send_goal_async(_goal(iterations=2000), feedback_callback=on_feedback), 10.0)
+        action_client.send_goal_async(_goal(iterations=2000, particles=200), feedback_callback=on_feedback), 10.0)
     assert goal_handle.accepted
     assert first.wait(30.0), 'no feedback'
     cancel = ros.wait(goal_handle.cancel_goal_async(), 10.0)

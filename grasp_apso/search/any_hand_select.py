@@ -39,7 +39,7 @@ from ..quality.closing import balanced_forces, closing_forces, squeeze_toward_fo
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .any_hand_pads import final_decodings, pads_on
-from .archive import wrists_distinct
+from .archive import wrist_groups, wrists_distinct
 from .exact_seat import pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import touch_pads
 from .ranking import grasp_quality, rank_order
@@ -449,24 +449,17 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
 
 
 def _first_groups(rows: list[int], wrist: np.ndarray, groups: int, options) -> list[int]:
-    """The rows (in their order) of the first ``groups`` groups of like wrists (each row
-    joins the first earlier group whose leader's wrist it is not distinct from, as
-    ``wrists_distinct``): the grasps the selection may analyse. Capped by rows instead, a
-    swarm converged on one grasp filled the cap with near copies of it (which the selection
-    skips once it is kept) and left its archive's other leaders out: measured on the
-    Allegro-like hand's sphere, seeds 0 and 1, one grasp returned where the archive held 20
-    distinct ones, and a second search run."""
-    leaders: list[int] = []
-    out = []
-    for i in rows:
-        if not leaders or wrists_distinct(wrist[i, :3, :3], wrist[i, :3, 3], wrist[leaders, :3, :3],
-                                          wrist[leaders, :3, 3], options.min_orientation_gap,
-                                          options.min_position_gap).all():
-            if len(leaders) >= groups:
-                continue
-            leaders.append(i)
-        out.append(i)
-    return out
+    """The rows (in their order) of the first ``groups`` groups of like wrists
+    (:func:`grasp_apso.search.archive.wrist_groups`): the grasps the selection may analyse.
+    Capped by rows instead, a swarm converged on one grasp filled the cap with near copies
+    of it (which the selection skips once it is kept) and left its archive's other leaders
+    out: measured on the Allegro-like hand's sphere, seeds 0 and 1, one grasp returned where
+    the archive held 20 distinct ones, and a second search run."""
+    if not rows:
+        return []
+    group, _ = wrist_groups(wrist[rows, :3, :3], wrist[rows, :3, 3], options.min_orientation_gap,
+                            options.min_position_gap)
+    return [r for r, g in zip(rows, group) if g < groups]
 
 
 def hold_score(checked: list[AnyChecked]) -> np.ndarray:

@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["LeaderArchive"]
+__all__ = ["LeaderArchive", "wrists_distinct", "wrist_groups"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -74,6 +74,30 @@ def wrists_distinct(rot_a: np.ndarray, pos_a: np.ndarray, rot_b: np.ndarray, pos
     trace = np.einsum("ab,nab->n", rot_a, rot_b)
     angle = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
     return (angle >= min_orientation_gap) | (np.linalg.norm(pos_b - pos_a, axis=1) >= min_position_gap)
+
+
+def wrist_groups(rot: np.ndarray, pos: np.ndarray, min_orientation_gap: float,
+                 min_position_gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """Groups of like wrists, in order: wrist i (rot (N, 3, 3), pos (N, 3) m) leads a new
+    group when it is distinct (:func:`wrists_distinct`) from every earlier group's leader,
+    else it joins the first of them it is not distinct from. Returns (group (N,) int,
+    numbered in order of their leaders; member (N,) int, 0 for a leader, then 1, 2, ... in
+    the group's order)."""
+    group = np.empty(len(rot), dtype=np.int64)
+    member = np.empty(len(rot), dtype=np.int64)
+    leaders: list[int] = []
+    sizes: list[int] = []
+    for i in range(len(rot)):
+        like = np.flatnonzero(~wrists_distinct(rot[i], pos[i], rot[leaders], pos[leaders], min_orientation_gap,
+                                               min_position_gap)) if leaders else ()
+        if len(like):
+            group[i], member[i] = like[0], sizes[like[0]]
+            sizes[like[0]] += 1
+        else:
+            group[i], member[i] = len(leaders), 0
+            leaders.append(i)
+            sizes.append(1)
+    return group, member
 
 
 class LeaderArchive:
