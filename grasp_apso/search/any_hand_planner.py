@@ -22,11 +22,10 @@ from ..geometry.any_hand_decoder import AnyDecoded, AnyHandModel, decode_any, ma
 from ..geometry.contact_settings import ContactSettings
 from .archive import LeaderArchive
 from .any_hand_grg import AnyHandGenerator
-from .any_hand_select import build_result, select_any
+from .any_hand_select import best_class, build_result, select_any
 from .grg import classify_shape
 from .options import PlanOptions
 from .problem import ARCHIVE_FACTOR, SwarmProblem
-from .ranking import ranking_class
 from .result import SIM_HELD
 from .swarm import IterationStats, run_swarm
 
@@ -50,7 +49,7 @@ SIMULATED_ROUNDS = 2
 ANALYTIC_ROUNDS = 2
 #: ... that second search (without ``simulate``) runs this fraction of the iterations.
 ANALYTIC_RETRY_ITERATIONS = 0.5
-#: The class of a balanced robust force-closure grasp in :func:`_best_class`.
+#: The class of a balanced robust force-closure grasp in :func:`~.any_hand_select.best_class`.
 BALANCED_CLASS = 3
 
 
@@ -126,7 +125,7 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
                 break
             first = first or result
         else:
-            first, first_class, first_checked = result, _best_class(checked), tuple(checked)
+            first, first_class, first_checked = result, best_class(checked), tuple(checked)
             if first_class >= BALANCED_CLASS:
                 break
         if swarm.cancelled or (should_stop is not None and should_stop()):
@@ -148,14 +147,6 @@ class _Shift:
     def __call__(self, stats: IterationStats) -> IterationStats:
         return replace(stats, iteration=stats.iteration + self.iterations, iterations=stats.iterations + self.iterations,
                        evaluations=stats.evaluations + self.evaluations, elapsed=stats.elapsed + self.elapsed)
-
-
-def _best_class(checked) -> int:
-    """The ranking class of a (not simulated) round's best grasp: the highest of its
-    verified grasps' (:func:`grasp_apso.search.ranking.ranking_class`; the ranking puts it
-    first), 3 balanced robust force closure, 2 force closure, 1 valid, 0 not valid."""
-    return int(ranking_class(np.array([c.valid for c in checked]), np.array([c.force_closure for c in checked]),
-                             np.array([c.balanced for c in checked])).max())
 
 
 def warm_up_any_hand(hand) -> float:

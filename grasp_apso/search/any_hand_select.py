@@ -42,10 +42,10 @@ from .any_hand_pads import final_decodings, pads_on
 from .archive import wrist_groups, wrists_distinct
 from .exact_seat import pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import touch_pads
-from .ranking import grasp_quality, rank_order
+from .ranking import grasp_quality, rank_order, ranking_class
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
 
-__all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture"]
+__all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture", "best_class"]
 
 #: The squeeze (rad or m) when the simulation settings are not importable.
 SQUEEZE = math.radians(8.0)
@@ -359,8 +359,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     wanted = (SPARE if options.simulate else DEFAULT_SPARE) * options.max_grasps
 
     prior = tuple(prior)
-    # the prior's best class (3 balanced, 2 force closure, 1 valid, 0 none; -1 no prior)
-    floor = -1 if not prior else max(3 if c.balanced else 2 if c.force_closure else int(c.valid) for c in prior)
+    floor = best_class(prior) if prior else -1
 
     def distinct(one) -> bool:
         return all(wrists_distinct(k.decoded.wrist[0, :3, :3], k.decoded.wrist[0, :3, 3], one.wrist[:, :3, :3],
@@ -446,6 +445,14 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     if kept[0].note:
         message = (message + "; " if message else "") + kept[0].note
     return kept, message
+
+
+def best_class(checked) -> int:
+    """The ranking class of the best of verified grasps (the ranking puts it first): the
+    highest of theirs (:func:`grasp_apso.search.ranking.ranking_class`), 3 balanced robust
+    force closure, 2 force closure, 1 valid, 0 not valid."""
+    return int(ranking_class(np.array([c.valid for c in checked]), np.array([c.force_closure for c in checked]),
+                             np.array([c.balanced for c in checked])).max())
 
 
 def _first_groups(rows: list[int], wrist: np.ndarray, groups: int, options) -> list[int]:
