@@ -394,6 +394,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
         else:
             later.append(c)
+    if floor >= 2:  # an earlier round's force-closure grasp: only balanced ones (above) rank higher
+        later = []
     fragile: list[AnyChecked] = []
     rest: list[AnyChecked] = []
     for c in later:  # robust force closure first (known now, for the grasps still distinct), then the rest
@@ -404,11 +406,10 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
         if not c.closure_known:
             _closure(c, options, obj)
         if c.force_closure and c.robust_epsilon > 0.0:
-            if floor < 2:
-                verify(c)
+            verify(c)
         else:
             (fragile if c.force_closure else rest).append(c)
-    for c in (fragile if floor < 2 else []) + (rest if floor < 1 else []):
+    for c in fragile + (rest if floor < 1 else []):
         if len(kept) >= wanted:
             break
         if distinct(c.decoded):
