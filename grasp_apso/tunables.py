@@ -125,7 +125,8 @@ TUNABLES: tuple[Tunable, ...] = (
     _t("algorithm", str, "apso", "Algorithm: apso (adaptive, GRG start) or pso (the simple PSO baseline).",
        choices=("apso", "pso"), scope="swarm"),
     _t("particles", int, 60, "Swarm size np.", 2, 1000, scope="swarm"),
-    _t("iterations", int, 50, "Iterations nit.", 1, 10000, scope="swarm"),
+    _t("iterations", int, 50, "Iterations nit (a general hand without `simulate`: 0.7 of them in its first search, "
+       "half in a second one when it runs).", 1, 10000, scope="swarm"),
     _t("seed", int, -1, "Random seed; -1 = a fresh random seed per request.", -1, _INT64_MAX,
        scope="swarm"),
     _t("neighborhood_size", int, 5, "Particles per APSO neighbourhood (clamped to the swarm size).",

@@ -129,7 +129,8 @@ def _pad_errors(hand, result, mesh: trimesh.Trimesh) -> list[float]:
 
 def _pad_link_distances(hand, cand, mesh: trimesh.Trimesh) -> list[float]:
     """|python-fcl signed distance| (m) of each contact finger's pad link (its collision
-    geometry as the file gives it) to the object's mesh, at the candidate's grasp."""
+    geometry as the file gives it) to the object's mesh, at the candidate's grasp: its
+    depth from python-fcl's contacts when it touches (the distance query then reads -1)."""
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
     model.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
@@ -144,7 +145,12 @@ def _pad_link_distances(hand, cand, mesh: trimesh.Trimesh) -> list[float]:
             tf = cand.wrist_pose @ poses[link] @ geom.origin
             part = fcl.CollisionObject(_fcl_geometry(geom), fcl.Transform(tf[:3, :3], tf[:3, 3]))
             request = fcl.DistanceRequest(enable_signed_distance=True)
-            best = min(best, abs(fcl.distance(part, obj, request, fcl.DistanceResult())))
+            distance = fcl.distance(part, obj, request, fcl.DistanceResult())
+            if distance < 0.0:  # touching: python-fcl reads -1 against a mesh; the depth from the contacts
+                result = fcl.CollisionResult()
+                fcl.collide(part, obj, fcl.CollisionRequest(num_max_contacts=64, enable_contact=True), result)
+                distance = max((c.penetration_depth for c in result.contacts), default=0.0)
+            best = min(best, abs(distance))
         out.append(best)
     return out
 
@@ -253,10 +259,11 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
     again (``ANALYTIC_ROUNDS``): the progress goes on from the first search's iterations,
     evaluations and time, and the result's history and ``iterations_run`` count both
     searches' iterations once (as the node's feedback promises: 1 .. iterations_run)."""
-    from grasp_apso.search.any_hand_planner import ANALYTIC_RETRY_ITERATIONS
+    from grasp_apso.search.any_hand_planner import analytic_iterations
 
-    options = PlanOptions(particles=12, iterations=6, max_grasps=2)
-    second = int(ANALYTIC_RETRY_ITERATIONS * options.iterations)
+    options = PlanOptions(particles=12, iterations=10, max_grasps=2)
+    first, second = analytic_iterations(0, options.iterations), analytic_iterations(1, options.iterations)
+    assert (first, second) == (7, 5)
     rounds = set()
     for seed in range(4):
         obj = builtin("barrel")
@@ -267,9 +274,9 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
         assert [s.iteration for s in result.history] == [s.iteration for s in seen]
         assert all(b.evaluations > a.evaluations and b.elapsed >= a.elapsed for a, b in zip(seen, seen[1:]))
         assert result.evaluations >= seen[-1].evaluations
-        assert result.iterations_run in (options.iterations, options.iterations + second)
+        assert result.iterations_run in (first, first + second)
         rounds.add(result.iterations_run)
-    assert options.iterations + second in rounds  # a second search ran in at least one plan
+    assert first + second in rounds  # a second search ran in at least one plan
 
 
 def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
@@ -291,9 +298,9 @@ def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
     monkeypatch.setattr(any_hand_planner, "select_any", recording)
     obj = builtin("sphere")
     options = PlanOptions(max_grasps=5)
-    # seed 0: the Allegro-like hand's first search converges on two-finger pinches of the
-    # sphere (no force closure) and a second search runs
-    result = plan(obj, options=options, rng=np.random.default_rng(0), hand=hands["allegro"],
+    # seed 1: the Allegro-like hand's first search converges on grasps of the sphere without
+    # force closure (two-finger pinches) and a second search runs
+    result = plan(obj, options=options, rng=np.random.default_rng(1), hand=hands["allegro"],
                   scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
     assert len(calls) == 2
     (first_prior, first), (prior, union) = calls
