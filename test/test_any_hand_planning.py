@@ -298,9 +298,9 @@ def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
     monkeypatch.setattr(any_hand_planner, "select_any", recording)
     obj = builtin("sphere")
     options = PlanOptions(max_grasps=5)
-    # seed 1: the Allegro-like hand's first search converges on grasps of the sphere without
-    # force closure (two-finger pinches) and a second search runs
-    result = plan(obj, options=options, rng=np.random.default_rng(1), hand=hands["allegro"],
+    # seed 3: none of the Allegro-like hand's first search's grasps of the sphere is balanced
+    # robust force closure (two verified, both force closure), and a second search runs
+    result = plan(obj, options=options, rng=np.random.default_rng(3), hand=hands["allegro"],
                   scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
     assert len(calls) == 2
     (first_prior, first), (prior, union) = calls

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from grasp_apso.errors import InputError
 from grasp_apso.model.hand import JOINT_NAMES, load_hand
 from grasp_apso.model.objects import from_arrays
 from grasp_apso.model.builtin import builtin
@@ -139,6 +140,47 @@ def test_apso_replaces_inactive_particles_and_pso_does_not():
     assert apso.history[0].active_particles == 10
     assert apso.history[0].replaced == 10
     assert problem.guided_calls == [20, 10]
+
+
+class _TwoBasins:
+    """A 1-D problem with two peaks: 1.0 at x = -0.6 and 0.9 at x = 0.6; GRG draws the first
+    neighbourhood around the higher peak and the second around the lower one."""
+
+    lower = np.array([-1.0])
+    upper = np.array([1.0])
+
+    def __init__(self):
+        self.evaluations = 0
+        self.calls = 0
+
+    def evaluate(self, x):
+        self.evaluations += len(x)
+        fit = np.maximum(1.0 - 2.0 * np.abs(x[:, 0] + 0.6), 0.9 - 2.0 * np.abs(x[:, 0] - 0.6))
+        return fit, np.ones(len(x), dtype=bool), np.full(len(x), 3)
+
+    def guided(self, k):
+        self.calls += 1
+        centre = np.where(np.arange(k) < k // 2, -0.6, 0.6)
+        return (centre + np.linspace(-0.1, 0.1, k))[:, None]
+
+
+def test_a_local_best_swarm_keeps_its_neighbourhoods_apart():
+    """With ``local_best`` (here for all the iterations) each neighbourhood follows its own best: the neighbourhood drawn
+    on the lower peak stays there; with the swarm's best (the paper's update) it is drawn
+    to the higher peak. The swarm's best is the higher peak either way."""
+    opts = SwarmOptions(particles=10, iterations=40, neighborhood_size=5, improvement=0.0, stall_iterations=1)
+    ends = {}
+    for local in (0.0, 1.0):
+        problem = _TwoBasins()
+        rng = np.random.default_rng(0)
+        res = run_swarm(problem, opts, rng, adaptive=True, local_best=local)
+        assert problem.calls == 1  # no replacements: both runs are the update alone
+        assert res.best_fitness == pytest.approx(1.0, abs=0.02) and res.best[0] == pytest.approx(-0.6, abs=0.01)
+        ends[local] = res.personal_best[5:, 0]
+    assert np.all(ends[1.0] > 0.4)  # the second neighbourhood stayed on its own peak
+    assert np.all(ends[0.0] < 0.0)  # drawn over to the swarm's best
+    with pytest.raises(InputError, match="local_best"):
+        run_swarm(_TwoBasins(), opts, np.random.default_rng(0), adaptive=True, local_best=1.5)
 
 
 def test_apso_replaces_the_worst_of_a_stalled_neighbourhood():

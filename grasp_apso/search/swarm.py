@@ -18,6 +18,10 @@ one iteration (the lowest fitness first).
 
 Simple PSO (``adaptive=False``): uniform random initialisation, no replacement.
 
+A general hand's APSO (``local_best``) replaces ``gbest`` in the update by the best
+personal best of the particle's own neighbourhood (a local-best PSO over the same fixed
+neighbourhoods) for the first part of the iterations.
+
 An evaluation is one particle decoded (GRG candidates included), so the two can be
 given the same budget (``max_evaluations``).
 """
@@ -105,6 +109,14 @@ class SwarmResult:
     cancelled: bool = False
 
 
+def _leaders(fitness: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The index of the fittest particle (the first of ties) of each contiguous
+    neighbourhood starting at ``starts`` (G,): fitness (P,) -> (G,) int."""
+    groups = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(fitness))))
+    top = np.flatnonzero(fitness == np.maximum.reduceat(fitness, starts)[groups])
+    return top[np.unique(groups[top], return_index=True)[1]]
+
+
 def run_swarm(
     problem: Problem,
     options: SwarmOptions,
@@ -112,12 +124,24 @@ def run_swarm(
     adaptive: bool,
     progress: Callable[[IterationStats], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
+    local_best: float = 0.0,
 ) -> SwarmResult:
     """Run APSO (``adaptive``) or the simple PSO for ``options.iterations`` iterations.
 
     Stops early when ``should_stop()`` turns true (checked before every iteration, so a
     cancel is honoured within one iteration) or the evaluation cap is reached.
+
+    ``local_best`` (APSO only), a share of the iterations in [0, 1]: in the first
+    ``local_best * iterations`` iterations the social term pulls each particle toward the
+    best personal best of its own neighbourhood (the fixed neighbourhoods of
+    ``neighborhood_size``) instead of the swarm's best, so that the neighbourhoods search
+    apart and one early basin (a two-finger pinch) does not draw in the whole swarm; the
+    swarm's best then refines the best basin found. The result's best is the swarm's best
+    throughout. The paper hand's planner leaves it at 0 (the paper's update); the general
+    hands' sets :data:`grasp_apso.search.any_hand_planner.LOCAL_BEST`.
     """
+    if not 0.0 <= local_best <= 1.0:
+        raise InputError(f"local_best: expected a share in [0, 1], got {local_best!r}", "local_best")
     start = time.perf_counter()
     lo, hi = np.asarray(problem.lower, dtype=float), np.asarray(problem.upper, dtype=float)
     span = hi - lo
@@ -159,7 +183,9 @@ def run_swarm(
         # d) velocity and position update
         r1 = rng.random((n, dims))
         r2 = rng.random((n, dims))
-        vel = vel + options.c1 * r1 * (pbest - pos) + options.c2 * r2 * (gbest - pos)
+        local = adaptive and it <= local_best * options.iterations
+        social = pbest[_leaders(pbest_f, group_starts)[groups]] if local else gbest
+        vel = vel + options.c1 * r1 * (pbest - pos) + options.c2 * r2 * (social - pos)
         vel = np.clip(vel, -vmax, vmax)
         moved = pos + vel
         clamped = (moved < lo) | (moved > hi)
