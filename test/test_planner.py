@@ -165,9 +165,10 @@ class _TwoBasins:
 
 
 def test_a_local_best_swarm_keeps_its_neighbourhoods_apart():
-    """With ``local_best`` (here for all the iterations) each neighbourhood follows its own best: the neighbourhood drawn
-    on the lower peak stays there; with the swarm's best (the paper's update) it is drawn
-    to the higher peak. The swarm's best is the higher peak either way."""
+    """With ``local_best`` (here for all the iterations) each neighbourhood follows its own
+    best: the neighbourhood drawn on the lower peak stays there; with the swarm's best (the
+    paper's update) it is drawn to the higher peak. The swarm's best is the higher peak
+    either way."""
     opts = SwarmOptions(particles=10, iterations=40, neighborhood_size=5, improvement=0.0, stall_iterations=1)
     ends = {}
     for local in (0.0, 1.0):

@@ -109,10 +109,10 @@ class SwarmResult:
     cancelled: bool = False
 
 
-def _leaders(fitness: np.ndarray, starts: np.ndarray) -> np.ndarray:
+def _leaders(fitness: np.ndarray, starts: np.ndarray, groups: np.ndarray) -> np.ndarray:
     """The index of the fittest particle (the first of ties) of each contiguous
-    neighbourhood starting at ``starts`` (G,): fitness (P,) -> (G,) int."""
-    groups = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(fitness))))
+    neighbourhood starting at ``starts`` (G,), ``groups`` (P,) each particle's
+    neighbourhood: fitness (P,) -> (G,) int."""
     top = np.flatnonzero(fitness == np.maximum.reduceat(fitness, starts)[groups])
     return top[np.unique(groups[top], return_index=True)[1]]
 
@@ -184,7 +184,7 @@ def run_swarm(
         r1 = rng.random((n, dims))
         r2 = rng.random((n, dims))
         local = adaptive and it <= local_best * options.iterations
-        social = pbest[_leaders(pbest_f, group_starts)[groups]] if local else gbest
+        social = pbest[_leaders(pbest_f, group_starts, groups)[groups]] if local else gbest
         vel = vel + options.c1 * r1 * (pbest - pos) + options.c2 * r2 * (social - pos)
         vel = np.clip(vel, -vmax, vmax)
         moved = pos + vel
