@@ -88,3 +88,25 @@ def test_the_preshape_layout_is_built_once_per_hand(setup):
     for a, b in zip(first[0], draws):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(first[1], _owned(model.tables))
+
+
+def test_a_thumb_joint_that_moves_another_finger_is_drawn_as_the_thumbs(tmp_path):
+    """A thumb's pre-shape joint that also moves another finger (the Schunk SVH's thumb
+    opposition turns the palm plate of its ring and little fingers) is drawn anywhere in
+    its range, as the thumb's pre-shape joints are, not near its open value as the other
+    fingers' abduction is: else GRG's thumb seldom opposes the fingers."""
+    path = write_allegro_like(tmp_path, "none")
+    text = path.read_text()
+    end = text.index("</joint>", text.index('<joint name="ring_joint_0"'))
+    # the ring finger's base turns with the thumb's rotation (a mimic joint)
+    path.write_text(text[:end] + '<mimic joint="thumb_joint_0" multiplier="0.2" offset="-0.15"/>\n  ' + text[end:])
+    hand = load_hand(path)
+    fingers = [f for f in hand.fingers if "thumb_joint_0" in f.joints]
+    assert sorted(f.is_thumb for f in fingers) == [False, True]  # the thumb's and the ring's
+    model = prepare_any_hand(builtin("cube"), hand, PlanOptions())
+    j = hand.actuated_joints.index("thumb_joint_0")
+    assert j not in _draws(model.tables, tuple(f.is_thumb for f in hand.fingers))[1]
+    q = any_hand_grg._preshape(model, 2000, np.random.default_rng(0), 0.5)[:, j]
+    low, high = hand.lower[j], hand.upper[j]
+    # anywhere in its range (near the open value: within 15 % of the range either side)
+    assert q.min() < low + 0.05 * (high - low) and q.max() > high - 0.05 * (high - low)

@@ -4,7 +4,8 @@ Wrist orientations from the shape class (:meth:`grasp_apso.search.grg.ShapeClass
 which also turns them to the free side of support planes), standoffs in the hand's range
 (biased toward the palm), pre-shapes within the joint limits: each closing joint in the
 open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense),
-the thumb's pre-shape joints anywhere in their range, the other fingers' abduction near its open value. A particle is kept
+the thumb's pre-shape joints anywhere in their range (also those that move another finger
+too), the other fingers' abduction near its open value. A particle is kept
 when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
 more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
@@ -65,13 +66,19 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     index the draws."""
     t = tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
+    # A thumb's pre-shape joint may move other fingers too (the Schunk SVH's thumb
+    # opposition also turns the palm plate that carries the ring and little fingers): it
+    # stays the thumb's, drawn anywhere; drawn as their abduction, near its open value,
+    # the thumb seldom opposes the fingers.
+    thumb_joints = {int(t.j_index[f, k]) for f in range(t.n_fingers) if thumbs[f]
+                    for k in range(int(t.j_count[f])) if np.isnan(t.j_target[f, k])}
     spread, spread_j, half, closing, closing_j, target = [], [], [], [], [], []
     row = 0
     for f in range(t.n_fingers):
         for k in range(int(t.j_count[f])):
             j = int(t.j_index[f, k])
             if np.isnan(t.j_target[f, k]):
-                if not thumbs[f]:  # abduction near its open value: spread fingers collide
+                if not thumbs[f] and j not in thumb_joints:  # abduction near its open value: spread fingers collide
                     spread.append(row)
                     spread_j.append(j)
                     half.append(SPREAD_FRACTION * (hi[j] - lo[j]))
