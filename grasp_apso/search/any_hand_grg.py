@@ -66,10 +66,10 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     index the draws."""
     t = tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
-    # A thumb's pre-shape joint may move other fingers too (the Schunk SVH's thumb
-    # opposition also turns the palm plate that carries the ring and little fingers): it
-    # stays the thumb's, drawn anywhere; drawn as their abduction, near its open value,
-    # the thumb seldom opposes the fingers.
+    # The thumb's pre-shape joints, drawn anywhere, also where they move another finger
+    # too (the Schunk SVH's thumb opposition turns the palm plate of the ring and little
+    # fingers): drawn as that finger's abduction, near its open value, the thumb seldom
+    # opposes the fingers.
     thumb_joints = {int(t.j_index[f, k]) for f in range(t.n_fingers) if thumbs[f]
                     for k in range(int(t.j_count[f])) if np.isnan(t.j_target[f, k])}
     spread, spread_j, half, closing, closing_j, target = [], [], [], [], [], []
@@ -78,7 +78,7 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
         for k in range(int(t.j_count[f])):
             j = int(t.j_index[f, k])
             if np.isnan(t.j_target[f, k]):
-                if not thumbs[f] and j not in thumb_joints:  # abduction near its open value: spread fingers collide
+                if j not in thumb_joints:  # abduction near its open value: spread fingers collide
                     spread.append(row)
                     spread_j.append(j)
                     half.append(SPREAD_FRACTION * (hi[j] - lo[j]))
