@@ -22,8 +22,8 @@ import trimesh
 from grasp_apso.errors import HandDescriptionError, InputError
 from grasp_apso.geometry.sdf import point_triangle_distance
 from grasp_apso.model.hands.geometry import LinkGeometry
-from grasp_apso.model.hands.pads import PAD_RADIUS_RANGE, find_pad
-from grasp_apso.model.hands.spheres import MAX_STRAY, cover_link
+from grasp_apso.model.hands.pads import PAD_RADIUS_RANGE, find_pad, outer_surface_samples
+from grasp_apso.model.hands.spheres import MAX_STRAY, cover_link, union_signed_distance
 
 TF = trimesh.transformations
 
@@ -268,6 +268,45 @@ def test_a_mesh_that_is_not_watertight_stands_for_its_convex_hull():
     geom = LinkGeometry("mesh", (), np.eye(4), open_box, source="hand.urdf: link1 collision 0")
     assert "convex hull" in geom.source and geom.mesh.is_watertight
     assert geom.signed_distance(np.zeros((1, 3)))[0] == pytest.approx(-0.01)
+
+
+def _with_cavity(outer: trimesh.Trimesh, size: float, offset) -> trimesh.Trimesh:
+    """``outer`` and, inside it, a closed box shell wound inward: a cavity, as CAD exports
+    carry for a screw hole or engraved text (dex hands' STL files, e.g. the XHAND's)."""
+    cavity = trimesh.creation.box([size] * 3)
+    cavity.apply_translation(offset)
+    return trimesh.util.concatenate([outer, trimesh.Trimesh(cavity.vertices, cavity.faces[:, ::-1])])
+
+
+def test_a_mesh_with_a_cavity_reads_outside_beyond_its_surface():
+    box = trimesh.creation.box([0.02, 0.02, 0.02])
+    mesh = _with_cavity(box, 0.006, (0.002, 0.0, 0.0))
+    geom = LinkGeometry("mesh", (), np.eye(4), mesh, source="hand.urdf: link1 collision 0")
+    rng = np.random.default_rng(11)
+    points = rng.uniform(-0.05, 0.05, (400, 3))
+    # The solid is the outer box's (the cavity's shell turned outward lies within it):
+    # before, the cavity's part read every point inside.
+    np.testing.assert_allclose(geom.signed_distance(points), _brute_signed_distance(box, points), atol=1e-12)
+    samples, _ = outer_surface_samples([geom], 0.002, rng, 2000)
+    assert len(samples) > 100
+    assert np.abs(_brute_signed_distance(box, samples)).max() < 1e-9   # all on the outer surface
+
+
+def test_a_hand_whose_fingertip_meshes_have_cavities_finds_its_pads(tmp_path):
+    from hand_files import write_allegro_like  # noqa: PLC0415 -- the test hands
+
+    from grasp_apso.model.hands.load import load_hand  # noqa: PLC0415
+
+    path = write_allegro_like(tmp_path, "all")
+    tips = sorted((path.parent / "meshes").glob("*_tip_0.stl"))
+    assert len(tips) == 4
+    for tip in tips:
+        _with_cavity(trimesh.load(tip), 0.004, (0.0, 0.0, 0.002)).export(tip)
+    hand = load_hand(path, spheres=False)   # before: no outer surface on the tips, a crash
+    assert len(hand.fingers) == 4
+    for finger in hand.fingers:
+        geoms = hand.collision[finger.pad_link]
+        assert abs(union_signed_distance(geoms, np.asarray(finger.pad_center)[None])[0]) < 1e-3
 
 
 @pytest.mark.parametrize("args", [

@@ -361,7 +361,9 @@ def _orient_open(mesh: trimesh.Trimesh) -> None:
     capped = mesh.copy()
     close_holes(capped, max_area=np.inf)
     if float(capped.volume) < 0.0:
-        mesh.invert()
+        # The faces reversed (which drops every cached normal), not ``invert()``: trimesh
+        # 5.2 left the face normals it had cached facing inward.
+        mesh.faces = np.ascontiguousarray(np.asarray(mesh.faces)[:, ::-1])
 
 
 def convex_hull(mesh: trimesh.Trimesh) -> trimesh.Trimesh:

@@ -27,7 +27,9 @@ from .spheres import SphereCover
 __all__ = ["COVER_VERSION", "cover_key", "covers_from_disk"]
 
 #: Bump when :func:`.spheres.cover_link` changes what it returns for the same input.
-COVER_VERSION = 1
+#: 2: a collision mesh's inward-facing inner shells (cavities) read outside again (covers of
+#: such meshes made before were wrong).
+COVER_VERSION = 2
 
 _log = logging.getLogger(__name__)
 

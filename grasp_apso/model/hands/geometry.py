@@ -126,7 +126,7 @@ class LinkGeometry:
             object.__setattr__(self, "source", f"{self.source} (not watertight: its convex hull)".strip())
             mesh = hull
         elif mesh.volume < 0:
-            mesh.invert()
+            mesh = _outward(mesh)
         return mesh
 
     # ----------------------------------------------------------------------------------
@@ -160,9 +160,12 @@ class LinkGeometry:
         overlapping shells: the solid is their union; flat shells have no inside)."""
         with np.errstate(invalid="ignore", divide="ignore"):  # a flat shell's centre of mass is 0 / 0
             parts = [part for part in self.mesh.split(only_watertight=False) if abs(part.volume) > _FLAT_VOLUME]
-        for part in parts:
-            if part.volume < 0:  # an inner shell facing inward: its solid counts too
-                part.invert()
+        # An inner shell facing inward (a CAD export's cavity: a screw hole, engraved
+        # text) is turned outward: its solid lies within the outer shell's. Rebuilt from
+        # the reversed faces, not trimesh's ``invert()``: a part of ``split`` keeps its
+        # parent's face normals cached, and ``invert()`` left them facing inward (trimesh
+        # 5.2), so every point read inside (the XHAND's thumb tip: no pad found).
+        parts = [_outward(part) if part.volume < 0 else part for part in parts]
         return tuple(MeshDistance(part) for part in parts) or (MeshDistance(self.mesh),)
 
     def to_trimesh(self) -> trimesh.Trimesh:
@@ -204,6 +207,12 @@ class LinkGeometry:
         for part in parts[1:]:
             np.minimum(out, part(p), out=out)
         return out
+
+
+def _outward(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """A closed shell wound inward, as a fresh mesh wound outward (nothing cached)."""
+    return trimesh.Trimesh(np.asarray(mesh.vertices), np.ascontiguousarray(np.asarray(mesh.faces)[:, ::-1]),
+                           process=False)
 
 
 def _capsule_mesh(radius: float, half_length: float) -> trimesh.Trimesh:

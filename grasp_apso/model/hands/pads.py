@@ -18,7 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ...errors import InputError
+from ...errors import HandDescriptionError, InputError
 from .geometry import LinkGeometry
 from .spheres import surface_samples, union_signed_distance
 
@@ -60,6 +60,9 @@ def outer_surface_samples(geoms: Sequence[LinkGeometry], spacing: float, rng: np
     parts meet (a seam inside the solid), touch nothing."""
     points, normals = surface_samples(geoms, spacing, rng, max_count)
     outer = union_signed_distance(geoms, points + _OUT_STEP * normals) > 0.5 * _OUT_STEP
+    if not outer.any():  # a union of solids always has an outer surface: the geometry is broken
+        raise HandDescriptionError(f"collision: {geoms[0].where}: no point of its surface reads outside it "
+                                   "(a mesh wound inside out or intersecting itself?)", field="collision")
     return points[outer], normals[outer]
 
 
