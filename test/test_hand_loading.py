@@ -162,13 +162,15 @@ def test_mjcf_meshes_sit_where_the_file_puts_them(hands, files):
     np.testing.assert_allclose(ours.bounds, stl.bounds, atol=1e-6)
 
 
-def test_package_uris_resolve_in_a_copied_description(files, tmp_path):
+@pytest.mark.parametrize("prefix", ["package://allegro_like/", "$(find allegro_like)/", "file://$(find allegro_like)/"])
+def test_package_uris_resolve_in_a_copied_description(files, tmp_path, prefix):
     import shutil
 
     # Copied out of its package folder (not called allegro_like), the URDF in urdf/ beside meshes/.
+    # xacro's $(find NAME) left in a published URDF (LEAP's leap_description) means the same.
     shutil.copytree(Path(files["allegro"]).parent / "meshes", tmp_path / "copy" / "meshes")
     (tmp_path / "copy" / "urdf").mkdir()
-    text = Path(files["allegro"]).read_text().replace('filename="meshes/', 'filename="package://allegro_like/meshes/')
+    text = Path(files["allegro"]).read_text().replace('filename="meshes/', f'filename="{prefix}meshes/')
     (tmp_path / "copy" / "urdf" / "hand.urdf").write_text(text)
     hand = load_hand(tmp_path / "copy" / "urdf" / "hand.urdf", spheres=False)
     assert len(hand.fingers) == 4

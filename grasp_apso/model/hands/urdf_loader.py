@@ -3,7 +3,7 @@
 Joints: revolute, continuous, prismatic, fixed (floating and planar refused, naming the
 joint); ``mimic`` elements become couplings. Collision geometry: box, cylinder, sphere,
 mesh (capsule, a common extension, too). Mesh paths resolve relative to the URDF file;
-``package://NAME/rest`` resolves to ``rest`` under the nearest ancestor folder called
+``package://NAME/rest`` (and xacro's ``$(find NAME)/rest``) resolves to ``rest`` under the nearest ancestor folder called
 NAME, or under a folder NAME beside an ancestor, or else under the URDF's folder or one of
 its three parents (the layouts of a ROS package and of a copied description). Only collision meshes are read: a missing one is an error naming it.
 """
@@ -11,6 +11,7 @@ its three parents (the layouts of a ROS package and of a copied description). On
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -23,9 +24,16 @@ from .model import Coupling
 
 __all__ = ["read_urdf", "resolve_mesh_path"]
 
+#: ``$(find NAME)/rest`` (also after ``file://``), as xacro writes a package's folder (left
+#: in some published URDFs: LEAP's leap_description).
+_FIND = re.compile(r"^(?:file://)?\$\(find ([^)\s]+)\)/(.*)$")
+
 
 def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
     """The file a URDF mesh ``filename`` names (may not exist)."""
+    find = _FIND.match(uri)
+    if find:  # a xacro / roslaunch substitution left in the file: the package's folder
+        uri = f"package://{find.group(1)}/{find.group(2)}"
     if uri.startswith("file://"):
         return Path(uri[len("file://"):])
     if uri.startswith("package://"):
