@@ -194,6 +194,15 @@ def test_a_missing_collision_mesh_is_named_and_missing_visual_meshes_are_ignored
         load_hand(edited, spheres=False)
 
 
+def test_a_git_lfs_pointer_instead_of_a_mesh_is_named(allegro_file, tmp_path):
+    # A clone made without git-lfs holds pointer files where the meshes should be.
+    pointer = allegro_file.parent / "meshes" / "lfs_pointer.stl"
+    pointer.write_text("version https://git-lfs.github.com/spec/v1\noid sha256:615b48aa\nsize 7293684\n")
+    edited = _edit(allegro_file, tmp_path, "meshes/ring_distal_0.stl", "meshes/lfs_pointer.stl")
+    with pytest.raises(HandDescriptionError, match="link ring_distal.*lfs_pointer.stl is a Git LFS pointer"):
+        load_hand(edited, spheres=False)
+
+
 def test_a_joint_without_limits_is_refused_and_continuous_joints_get_pi(allegro_file, tmp_path):
     edited = _edit(allegro_file, tmp_path, '<limit lower="-0.196" upper="1.61" effort="0.7" velocity="7"/>', "")
     with pytest.raises(HandDescriptionError, match="index_joint_1.*no limits") as info:

@@ -26,6 +26,8 @@ __all__ = ["read_urdf", "resolve_mesh_path"]
 
 #: ``$(find NAME)/rest`` (also after ``file://``), as xacro writes a package's folder (left
 #: in some published URDFs: LEAP's leap_description).
+#: The first bytes of a Git LFS pointer file (a clone made without git-lfs holds these).
+_LFS_POINTER = b"version https://git-lfs"
 _FIND = re.compile(r"^(?:file://)?\$\(find ([^)\s]+)\)/(.*)$")
 
 
@@ -59,6 +61,10 @@ def _load_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
     if path.stat().st_size > max_bytes:
         raise HandDescriptionError(f"{where}: collision mesh {path.name} is over the size limit "
                                    f"({path.stat().st_size} > {max_bytes} bytes)", field=where)
+    with path.open("rb") as f:
+        if f.read(len(_LFS_POINTER)) == _LFS_POINTER:  # a clone made without git-lfs
+            raise HandDescriptionError(f"{where}: collision mesh {path.name} is a Git LFS pointer, not the mesh "
+                                       "(fetch the file: git lfs pull)", field=where)
     try:
         mesh = trimesh.load(str(path), force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for a bad file
