@@ -257,6 +257,19 @@ def _mjcf(tmp_path, fingers: int, visual_missing=False, collision_missing=False)
     return path
 
 
+def test_a_closed_linkage_in_an_mjcf_is_noted(tmp_path):
+    # A parallel gripper's four-bar (menagerie's Robotiq 2F-85): a connect equality closes a
+    # loop the open-tree kinematics do not follow; the user is told when checking the hand.
+    path = _mjcf(tmp_path, 2)
+    text = path.read_text().replace("</mujoco>", '<equality><connect name="bar" body1="f0_2" body2="f1_2" '
+                                    'anchor="0 0 0.03"/></equality>\n</mujoco>')
+    path.write_text(text)
+    hand = load_hand(path, spheres=False)
+    assert [n for n in hand.notes if n.startswith("equality bar:")] == [
+        "equality bar: connect of bodies f0_2 and f1_2 closes a kinematic loop, which is not modelled (the open "
+        "chains are): the closing motion may not be the file's"]
+
+
 def test_mjcf_meshes_fingers_and_size(tmp_path):
     hand = load_hand(_mjcf(tmp_path, 2, visual_missing=True), spheres=False)
     assert len(hand.fingers) == 2 and any("look.stl missing" in n for n in hand.notes)

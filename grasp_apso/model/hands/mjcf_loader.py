@@ -219,6 +219,15 @@ def _equalities(mujoco, model, raw, joint_names, qpos0, depth) -> None:
             raw.couplings.append(Coupling(follower, leader, mult,
                                           qpos0[follower] + float(poly[0]) - mult * qpos0[leader],
                                           f"equality {ename}"))
+        elif model.eq_type[e] == EQ.mjEQ_CONNECT or model.eq_type[e] == EQ.mjEQ_WELD:  # (not `in`: numpy vs enum)
+            # A closed linkage (a parallel gripper's four-bar: the Robotiq 2F-85): the
+            # kinematics here are the open tree, so its links do not move as the file's.
+            kind = "connect" if model.eq_type[e] == EQ.mjEQ_CONNECT else "weld"
+            bodies = [_name(mujoco, model, mujoco.mjtObj.mjOBJ_BODY, int(b), "body")
+                      for b in (model.eq_obj1id[e], model.eq_obj2id[e])]
+            raw.notes.append(f"equality {ename}: {kind} of bodies {bodies[0]} and {bodies[1]} closes a kinematic "
+                             "loop, which is not modelled (the open chains are): the closing motion may not be "
+                             "the file's")
         elif model.eq_type[e] == EQ.mjEQ_TENDON and model.eq_obj2id[e] < 0:
             # L - L0 = a0: the tendon keeps its length at qpos0 (plus a0).
             t = model.eq_obj1id[e]
