@@ -49,6 +49,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import statistics
 import sys
 import time
@@ -108,8 +109,12 @@ class IndependentHand:
                 self.elements.append((name, origin, geom, mesh))
 
     def _resolve(self, filename: str) -> Path:
-        if filename.startswith("package://"):
-            rest = filename[len("package://"):].split("/", 1)[1]
+        find = re.match(r"^(?:file://)?\$\(find [^)]+\)/(.*)$", filename)  # xacro's package folder
+        if find or filename.startswith("package://"):
+            rest = find.group(1) if find else filename[len("package://"):].split("/", 1)[1]
+            for folder in (self.path.parent, *list(self.path.parents)[:3]):  # the URDF's folder or the package's
+                if (folder / rest).exists():
+                    return folder / rest
             return self.path.parent / rest
         if filename.startswith("file://"):
             return Path(filename[len("file://"):])

@@ -36,6 +36,10 @@ KINDS: dict[str, int] = {"box": 3, "sphere": 1, "cylinder": 2, "capsule": 2, "me
 _SECTIONS = 96
 _CAPSULE_LATITUDES = 16
 _ICO_LEVEL = 4
+#: No collision geometry of a hand (a forearm link included) is this large (m): one that
+#: is was drawn in other units than its file says (HOPE-Jr's STL files, scaled 0.1, come
+#: out 27 m long per fingertip).
+MAX_GEOMETRY_SPAN = 1.0
 #: Components of a mesh with less volume than this are flat sheets, not solids (m^3).
 _FLAT_VOLUME = 1e-12
 #: Tolerance of the rigid-transform check on ``origin``.
@@ -104,6 +108,22 @@ class LinkGeometry:
             object.__setattr__(self, "mesh", self._checked_mesh(where))
         elif self.mesh is not None:
             raise HandDescriptionError(f"collision: {where}: a {self.kind} takes no mesh", field="collision")
+        span = self._span()
+        if span > MAX_GEOMETRY_SPAN:
+            raise HandDescriptionError(
+                f"collision: {where}: {span:.3g} m across, more than any part of a hand ({MAX_GEOMETRY_SPAN:g} m): "
+                "are its units the file's? (a mesh drawn in mm needs the scale 0.001)", field="collision")
+
+    def _span(self) -> float:
+        """The largest extent of the geometry (m), without tessellating a primitive."""
+        if self.kind == "mesh":
+            return float(np.max(self.mesh.extents))
+        if self.kind == "box":
+            return 2.0 * max(self.size)
+        if self.kind == "sphere":
+            return 2.0 * self.size[0]
+        radius, half = self.size
+        return 2.0 * max(radius, half + (radius if self.kind == "capsule" else 0.0))
 
     def _checked_mesh(self, where: str) -> trimesh.Trimesh:
         mesh = self.mesh
