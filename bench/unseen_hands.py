@@ -112,7 +112,7 @@ class IndependentHand:
         find = re.match(r"^(?:file://)?\$\(find [^)]+\)/(.*)$", filename)  # xacro's package folder
         if find or filename.startswith("package://"):
             rest = find.group(1) if find else filename[len("package://"):].split("/", 1)[1]
-            for folder in (self.path.parent, *list(self.path.parents)[:3]):  # the URDF's folder or the package's
+            for folder in (self.path.parent, *list(self.path.parent.parents)[:3]):  # the URDF's folder or the package's
                 if (folder / rest).exists():
                     return folder / rest
             return self.path.parent / rest

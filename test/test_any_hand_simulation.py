@@ -397,3 +397,39 @@ def test_urdf_with_unphysical_inertia_compiles(tmp_path):
     assert sc.model.body_mass[sc.model.body("index_proximal").id] == pytest.approx(0.05)
     a, b, c = np.sort(inertia)
     assert a + b >= c * (1 - 1e-9)
+
+
+_MM_DEFAULTS = """<mujoco model="mm_defaults">
+  <default><mesh scale="0.001 0.001 0.001"/><geom margin="0.01"/></default>
+  <worldbody>
+    <body name="palm"><geom type="box" size="0.04 0.04 0.01"/>
+      <body name="f0_1" pos="0.02 0 0.01"><joint name="f0_j1" axis="0 1 0" range="0 1.5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
+        <body name="f0_2" pos="0 0 0.04"><joint name="f0_j2" axis="0 1 0" range="0 1.5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
+      <body name="f1_1" pos="-0.02 0 0.01"><joint name="f1_j1" axis="0 -1 0" range="0 1.5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
+        <body name="f1_2" pos="0 0 0.04"><joint name="f1_j2" axis="0 -1 0" range="0 1.5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_an_mjcfs_defaults_do_not_reach_the_object(tmp_path):
+    # The ORCA hand's MJCF gives every mesh scale 0.001 by default (its STL files are in
+    # mm): the object's parts, added to that file, came out 1000 times smaller and MuJoCo
+    # refused the scene (an inertia without positive eigenvalues).
+    path = tmp_path / "mm_defaults.xml"
+    path.write_text(_MM_DEFAULTS)
+    hand = load_hand(path, spheres=False)
+    obj = builtin("sphere")
+    sc, _ = prepare_any_hand(hand, obj, FAR, np.eye(4), hand.open_configuration())
+    m = sc.model
+    body = m.body(OBJECT_BODY).id
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body]
+    verts = np.vstack([m.mesh_vert[m.mesh_vertadr[m.geom_dataid[g]]:][:m.mesh_vertnum[m.geom_dataid[g]]]
+                       for g in geoms])
+    np.testing.assert_allclose(np.ptp(verts, axis=0), obj.mesh.extents, rtol=0.02)
+    assert all(m.geom_margin[g] == 0.0 for g in geoms)
+

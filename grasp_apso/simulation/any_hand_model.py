@@ -359,6 +359,7 @@ def _add_object(spec, parts, settings: SimulationSettings, priority: int) -> Non
     body.simple = 0  # its inertia is replaced after compiling (MuJoCo's body/simple="false")
     for i, part in enumerate(parts):
         mesh = spec.add_mesh(name=f"{OBJECT_BODY}_part{i}")
+        mesh.scale = [1.0, 1.0, 1.0]  # not the file's default (the ORCA hand's: 0.001, its STL files in mm)
         mesh.uservert = np.asarray(part, float).ravel()
         g = body.add_geom(name=f"{OBJECT_BODY}_part{i}", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name)
         g.density = 1000.0  # replaced by the object's own inertia after compiling
