@@ -40,6 +40,8 @@ _ICO_LEVEL = 4
 #: is was drawn in other units than its file says (HOPE-Jr's STL files, scaled 0.1, come
 #: out 27 m long per fingertip).
 MAX_GEOMETRY_SPAN = 1.0
+#: Decimals (m) a mesh's points are rounded to when their convex hull comes out open.
+_HULL_DIGITS = (6, 5)
 #: Components of a mesh with less volume than this are flat sheets, not solids (m^3).
 _FLAT_VOLUME = 1e-12
 #: Tolerance of the rigid-transform check on ``origin``.
@@ -138,6 +140,12 @@ class LinkGeometry:
         if not mesh.is_watertight or not mesh.is_winding_consistent:
             try:
                 hull = mesh.convex_hull
+                for digits in _HULL_DIGITS:
+                    if hull.is_watertight:
+                        break
+                    # Points a few nm apart (Tesollo DG-5F's STL files) leave qhull's hull open:
+                    # merged to 1 um, then 10 um, it closes.
+                    hull = trimesh.convex.convex_hull(np.round(np.asarray(mesh.vertices), digits))
             except Exception as exc:  # qhull refuses flat or degenerate point sets
                 raise HandDescriptionError(f"collision: {where}: the mesh is not watertight and has no convex "
                                            f"hull ({type(exc).__name__})", field="collision") from None
