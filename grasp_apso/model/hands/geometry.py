@@ -143,8 +143,9 @@ class LinkGeometry:
                 for digits in _HULL_DIGITS:
                     if hull.is_watertight:
                         break
-                    # Points a few nm apart (Tesollo DG-5F's STL files) leave qhull's hull open:
-                    # merged to 1 um, then 10 um, it closes.
+                    # Points a hair off the hull's edges (Tesollo DG-5F's STL files) make qhull
+                    # drop a sliver facet and the hull comes out open: rounded to 1 um, then
+                    # 10 um, it closes.
                     hull = trimesh.convex.convex_hull(np.round(np.asarray(mesh.vertices), digits))
             except Exception as exc:  # qhull refuses flat or degenerate point sets
                 raise HandDescriptionError(f"collision: {where}: the mesh is not watertight and has no convex "

@@ -3,9 +3,11 @@
 Joints: revolute, continuous, prismatic, fixed (floating and planar refused, naming the
 joint); ``mimic`` elements become couplings. Collision geometry: box, cylinder, sphere,
 mesh (capsule, a common extension, too). Mesh paths resolve relative to the URDF file;
-``package://NAME/rest`` (and xacro's ``$(find NAME)/rest``) resolves to ``rest`` under the nearest ancestor folder called
-NAME, or under a folder NAME beside an ancestor, or else under the URDF's folder or one of
-its three parents (the layouts of a ROS package and of a copied description). Only collision meshes are read: a missing one is an error naming it.
+``package://NAME/rest`` (and xacro's ``$(find NAME)/rest``) resolves to ``rest`` under the
+nearest ancestor folder called NAME, or under a folder NAME beside an ancestor, or else
+under the URDF's folder or one of its three parents (the layouts of a ROS package and of a
+copied description). Only collision meshes are read: a missing one, or a Git LFS pointer in
+its place, is an error naming it.
 """
 
 from __future__ import annotations
@@ -26,9 +28,9 @@ __all__ = ["read_urdf", "resolve_mesh_path"]
 
 #: ``$(find NAME)/rest`` (also after ``file://``), as xacro writes a package's folder (left
 #: in some published URDFs: LEAP's leap_description).
+_FIND = re.compile(r"^(?:file://)?\$\(find ([^)\s]+)\)/(.*)$")
 #: The first bytes of a Git LFS pointer file (a clone made without git-lfs holds these).
 _LFS_POINTER = b"version https://git-lfs"
-_FIND = re.compile(r"^(?:file://)?\$\(find ([^)\s]+)\)/(.*)$")
 
 
 def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
