@@ -433,3 +433,28 @@ def test_an_mjcfs_defaults_do_not_reach_the_object(tmp_path):
     np.testing.assert_allclose(np.ptp(verts, axis=0), obj.mesh.extents, rtol=0.02)
     assert all(m.geom_margin[g] == 0.0 for g in geoms)
 
+
+def test_a_urdf_with_collada_meshes_in_mm_loads_and_simulates(tmp_path):
+    # ROS descriptions often give collision meshes as COLLADA files, whose <unit> says how
+    # long a unit is (RViz applies it): the loader reads them in metres, and the simulation,
+    # whose MuJoCo decodes no COLLADA, gets an STL copy of the same mesh.
+    path = write_allegro_like(tmp_path, "mixed")
+    stl = path.parent / "meshes" / "ring_distal_0.stl"
+    reference = trimesh.load(stl, force="mesh")
+    text = reference.copy().apply_scale(1000.0).export(file_type="dae")
+    text = text.decode() if isinstance(text, bytes) else text
+    assert "<asset>" in text and "<unit" not in text
+    (path.parent / "meshes" / "ring_distal_0.dae").write_text(
+        text.replace("<asset>", '<asset><unit meter="0.001" name="millimeter"/>', 1))
+    path.write_text(path.read_text().replace("meshes/ring_distal_0.stl", "meshes/ring_distal_0.dae"))
+    hand = load_hand(path, spheres=False)
+    (geom,) = hand.collision["ring_distal"]
+    np.testing.assert_allclose(geom.mesh.extents, reference.extents, rtol=1e-6)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), hand.open_configuration())
+    m = sc.model
+    body = m.body("ring_distal").id
+    (g,) = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    d = m.geom_dataid[g]
+    verts = m.mesh_vert[m.mesh_vertadr[d]:m.mesh_vertadr[d] + m.mesh_vertnum[d]]
+    assert np.ptp(verts, axis=0).max() == pytest.approx(reference.extents.max(), rel=1e-3)
+

@@ -203,6 +203,14 @@ def test_a_git_lfs_pointer_instead_of_a_mesh_is_named(allegro_file, tmp_path):
         load_hand(edited, spheres=False)
 
 
+def test_a_collision_mesh_in_other_units_than_the_file_says_is_refused(allegro_file, tmp_path):
+    # HOPE-Jr's URDF scales its STL files 0.1 where they need 0.0001: 27 m fingertips.
+    edited = _edit(allegro_file, tmp_path, 'meshes/ring_distal_0.stl"/>', 'meshes/ring_distal_0.stl" scale="100 100 100"/>')
+    with pytest.raises(HandDescriptionError, match=r"link ring_distal collision 0 \(ring_distal_0.stl\): .* m across, "
+                                                   r"more than any part of a hand"):
+        load_hand(edited, spheres=False)
+
+
 def test_a_joint_without_limits_is_refused_and_continuous_joints_get_pi(allegro_file, tmp_path):
     edited = _edit(allegro_file, tmp_path, '<limit lower="-0.196" upper="1.61" effort="0.7" velocity="7"/>', "")
     with pytest.raises(HandDescriptionError, match="index_joint_1.*no limits") as info:

@@ -283,11 +283,12 @@ def _with_cavity(outer: trimesh.Trimesh, size: float, offset) -> trimesh.Trimesh
 def test_a_geometry_larger_than_a_hand_is_refused_as_a_unit_error(kind, size, scale):
     # HOPE-Jr's fingertip STL files scaled 0.1 by its URDF: 27 m long.
     mesh = trimesh.creation.box([272.5, 152.0, 136.7]).apply_scale(scale) if kind == "mesh" else None
+    geom = LinkGeometry(kind, size, np.eye(4), mesh, source="link1 collision 0")   # an obstacle may be so large
     with pytest.raises(HandDescriptionError, match=r"link1 collision 0: .* m across, more than any part of a hand "
                                                    r"\(1 m\): are its units the file's"):
-        LinkGeometry(kind, size, np.eye(4), mesh, source="link1 collision 0")
+        geom.check_hand_part()
     if kind == "capsule":  # the largest a hand's part may be
-        LinkGeometry(kind, (0.01, 0.49), np.eye(4), None, source="link1 collision 0")
+        LinkGeometry(kind, (0.01, 0.49), np.eye(4), None, source="link1 collision 0").check_hand_part()
 
 
 def test_a_mesh_with_a_cavity_reads_outside_beyond_its_surface():

@@ -36,6 +36,9 @@
 
 from __future__ import annotations
 
+import hashlib
+import os
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -129,8 +132,34 @@ def _urdf_spec(text: str, base: Path):
     spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
     for mesh in spec.meshes:
         if mesh.file:
-            mesh.file = str(resolve_mesh_path(mesh.file, base))
+            path = resolve_mesh_path(mesh.file, base)
+            mesh.file = str(path if path.suffix.lower() in _MUJOCO_MESHES else _decodable_copy(path))
     return spec
+
+
+#: Mesh files MuJoCo decodes itself; others (a ROS URDF's COLLADA files) go as STL copies.
+_MUJOCO_MESHES = (".stl", ".obj", ".msh")
+
+
+def _decodable_copy(path: Path) -> Path:
+    """An STL copy of a collision mesh MuJoCo cannot decode, read as the hand loader reads
+    it (units in metres), kept under the cache root by the file's content hash."""
+    from .. import tunables
+    from ..cache import cache_root
+    from ..model.hands.urdf_loader import read_collision_mesh
+
+    if not path.is_file():
+        return path  # MuJoCo names the missing file
+    digest = hashlib.sha256(b"stl-v1;" + path.read_bytes()).hexdigest()
+    out = cache_root() / "sim_meshes" / f"{digest}.stl"
+    if not out.is_file():
+        mesh = read_collision_mesh(path, f"simulation: mesh {path.name}", int(tunables.default("max_hand_file_bytes")))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".stl.tmp")
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(mesh.export(file_type="stl"))
+        os.replace(tmp, out)  # atomic: another worker may write the same copy at once
+    return out
 
 
 def _hand_spec(hand):

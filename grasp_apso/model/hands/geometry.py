@@ -110,13 +110,19 @@ class LinkGeometry:
             object.__setattr__(self, "mesh", self._checked_mesh(where))
         elif self.mesh is not None:
             raise HandDescriptionError(f"collision: {where}: a {self.kind} takes no mesh", field="collision")
-        span = self._span()
+
+    def check_hand_part(self) -> None:
+        """HandDescriptionError when the geometry is larger than any part of a hand
+        (:data:`MAX_GEOMETRY_SPAN`): a file whose units are not what it says. (Scene
+        obstacles are LinkGeometry too, and may be any size.)"""
+        span = self.span()
         if span > MAX_GEOMETRY_SPAN:
             raise HandDescriptionError(
-                f"collision: {where}: {span:.3g} m across, more than any part of a hand ({MAX_GEOMETRY_SPAN:g} m): "
-                "are its units the file's? (a mesh drawn in mm needs the scale 0.001)", field="collision")
+                f"collision: {self.where}: {span:.3g} m across, more than any part of a hand "
+                f"({MAX_GEOMETRY_SPAN:g} m): are its units the file's? (a mesh drawn in mm needs the scale 0.001)",
+                field="collision")
 
-    def _span(self) -> float:
+    def span(self) -> float:
         """The largest extent of the geometry (m), without tessellating a primitive."""
         if self.kind == "mesh":
             return float(np.max(self.mesh.extents))

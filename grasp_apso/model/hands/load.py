@@ -116,6 +116,9 @@ def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: 
 def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres: bool = True) -> HandModel:
     """The HandModel of a loaded description, with the derivation and ``cfg`` applied."""
     names = [link.name for link in raw.links]
+    for link in raw.links:
+        for geom in link.geoms:
+            geom.check_hand_part()
     root = cfg.get("root_link") or find_root(raw)
     if root not in names:
         raise HandDescriptionError(f"hand_config.root_link: {root!r} is not a link", field="hand_config.root_link")

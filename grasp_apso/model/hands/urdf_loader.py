@@ -24,7 +24,7 @@ from .description import RawHand, RawJoint, RawLink
 from .geometry import LinkGeometry
 from .model import Coupling
 
-__all__ = ["read_urdf", "resolve_mesh_path"]
+__all__ = ["read_collision_mesh", "read_urdf", "resolve_mesh_path"]
 
 #: ``$(find NAME)/rest`` (also after ``file://``), as xacro writes a package's folder (left
 #: in some published URDFs: LEAP's leap_description).
@@ -74,7 +74,21 @@ def _load_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
                                    field=where) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise HandDescriptionError(f"{where}: collision mesh {path.name} has no triangles", field=where)
+    if mesh.units not in (None, "meters", "m"):
+        # A COLLADA file's <unit meter="0.001"/> (RViz applies it too); STL and OBJ carry none.
+        try:
+            mesh.convert_units("meters", guess=False)
+        except Exception:  # trimesh raises ValueError / KeyError for a unit it cannot read
+            raise HandDescriptionError(f"{where}: collision mesh {path.name} is in units {mesh.units!r}, which "
+                                       "cannot be converted to metres", field=where) from None
     return mesh
+
+
+def read_collision_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
+    """A URDF collision mesh file as the hand loader reads it (in metres, the file's own
+    scale not applied): for the simulation, which hands MuJoCo the formats it cannot
+    decode (COLLADA) converted."""
+    return _load_mesh(path, where, max_bytes)
 
 
 def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeometry | None:
