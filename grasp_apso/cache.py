@@ -31,7 +31,8 @@ from typing import Any, Callable, Generic, Hashable, Mapping, TypeVar
 import numpy as np
 
 __all__ = ["BoundedCache", "CacheLimit", "CacheStats", "CACHE_LIMITS", "PerThreadCache", "approximate_nbytes",
-           "cache_root", "cache_stats", "cached", "clear_caches", "named_cache", "set_cache_root"]
+           "cache_root", "cache_stats", "cached", "clear_caches", "named_cache", "set_cache_root",
+           "write_atomically"]
 
 V = TypeVar("V")
 
@@ -273,6 +274,28 @@ def set_cache_root(path: str | os.PathLike | None) -> None:
         _ROOT.clear()
         if path:
             _ROOT.append(Path(path).expanduser())
+
+
+def write_atomically(path: Path, write: Callable[[Any], None]) -> OSError | None:
+    """Write a disk-cache file whole or not at all: ``write(handle)`` fills a temporary file
+    beside ``path`` (binary), which then replaces it (atomic on POSIX: a reader, or another
+    process writing the same entry, only ever sees whole files). Returns the error, the
+    temporary file removed, when the folder cannot be written (the caller goes on without
+    the cache), else None."""
+    import tempfile
+
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=path.suffix + ".tmp")
+        with os.fdopen(fd, "wb") as handle:
+            write(handle)
+        os.replace(tmp, path)
+        return None
+    except OSError as exc:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+        return exc
 
 
 def cache_root() -> Path:

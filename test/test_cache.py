@@ -49,7 +49,8 @@ def test_per_thread_cache_builds_once_per_thread_and_object():
 import ast  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from grasp_apso.cache import CACHE_LIMITS, cache_root, cached, clear_caches, named_cache, set_cache_root  # noqa: E402
+from grasp_apso.cache import (CACHE_LIMITS, cache_root, cached, clear_caches, named_cache,  # noqa: E402
+                              set_cache_root, write_atomically)
 
 PKG = Path(__file__).resolve().parents[1] / "grasp_apso"
 #: Module-level caches allowed outside cache.py, with why: keyed by a name or a file,
@@ -153,3 +154,21 @@ def test_cache_root_follows_the_setting_then_the_environment(tmp_path, monkeypat
     finally:
         set_cache_root(None)
     assert cache_root() == tmp_path / "env"
+
+
+def test_disk_cache_files_are_written_whole_or_not_at_all(tmp_path):
+    path = tmp_path / "covers" / "entry.npz"
+    assert write_atomically(path, lambda handle: handle.write(b"whole")) is None
+    assert path.read_bytes() == b"whole" and sorted(p.name for p in path.parent.iterdir()) == ["entry.npz"]
+
+    def fails(handle):
+        handle.write(b"half")
+        raise OSError("disk full")
+
+    error = write_atomically(path, fails)
+    assert isinstance(error, OSError) and "disk full" in str(error)
+    # the old entry stands and no temporary file is left beside it
+    assert path.read_bytes() == b"whole" and sorted(p.name for p in path.parent.iterdir()) == ["entry.npz"]
+    blocked = tmp_path / "a_file"
+    blocked.write_text("x")
+    assert isinstance(write_atomically(blocked / "entry.npz", lambda handle: None), OSError)

@@ -66,10 +66,10 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     index the draws."""
     t = tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
-    # The thumb's pre-shape joints, drawn anywhere, also where they move another finger
+    # The thumb's pre-shape joints are drawn anywhere, also where they move another finger
     # too (the Schunk SVH's thumb opposition turns the palm plate of the ring and little
-    # fingers): drawn as that finger's abduction, near its open value, the thumb seldom
-    # opposes the fingers.
+    # fingers): drawn as that finger's abduction, near its open value, the thumb would
+    # seldom oppose the fingers.
     thumb_joints = {int(t.j_index[f, k]) for f in range(t.n_fingers) if thumbs[f]
                     for k in range(int(t.j_count[f])) if np.isnan(t.j_target[f, k])}
     spread, spread_j, half, closing, closing_j, target = [], [], [], [], [], []

@@ -37,8 +37,6 @@
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -145,7 +143,7 @@ def _decodable_copy(path: Path) -> Path:
     """An STL copy of a collision mesh MuJoCo cannot decode, read as the hand loader reads
     it (units in metres), kept under the cache root by the file's content hash."""
     from .. import tunables
-    from ..cache import cache_root
+    from ..cache import cache_root, write_atomically
     from ..model.hands.urdf_loader import read_collision_mesh
 
     if not path.is_file():
@@ -154,11 +152,10 @@ def _decodable_copy(path: Path) -> Path:
     out = cache_root() / "sim_meshes" / f"{digest}.stl"
     if not out.is_file():
         mesh = read_collision_mesh(path, f"simulation: mesh {path.name}", int(tunables.default("max_hand_file_bytes")))
-        out.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".stl.tmp")
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(mesh.export(file_type="stl"))
-        os.replace(tmp, out)  # atomic: another worker may write the same copy at once
+        error = write_atomically(out, lambda handle: handle.write(mesh.export(file_type="stl")))
+        if error is not None:
+            raise SimulationError(f"simulation: MuJoCo reads no {path.suffix} mesh, and the STL copy of {path.name} "
+                                  f"cannot be written under the cache root ({error})")
     return out
 
 

@@ -56,7 +56,7 @@ from typing import Callable
 import numpy as np
 import trimesh
 
-from ..cache import cache_root, clear_caches, named_cache
+from ..cache import cache_root, clear_caches, named_cache, write_atomically
 from ..errors import InputError, SimulationError
 from ..tunables import default
 
@@ -229,15 +229,11 @@ def _read_disk(path: Path, timeout: float) -> Decomposition | None:
 
 def _write_disk(path: Path, found: Decomposition, timeout: float) -> None:
     parts = found.parts or ()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as handle:
-            np.savez(handle, n=np.array(len(parts)), method=np.array(found.method), note=np.array(found.note),
-                     timeout=np.array(float(timeout)), **{f"p{i}": p for i, p in enumerate(parts)})
-        os.replace(tmp, path)
-    except OSError as exc:
-        _log.warning("cannot write convex-decomposition cache %s: %s", path, exc)
+    error = write_atomically(path, lambda handle: np.savez(
+        handle, n=np.array(len(parts)), method=np.array(found.method), note=np.array(found.note),
+        timeout=np.array(float(timeout)), **{f"p{i}": p for i, p in enumerate(parts)}))
+    if error is not None:
+        _log.warning("cannot write convex-decomposition cache %s: %s", path, error)
 
 
 # ------------------------------------------------------------------ the background runs

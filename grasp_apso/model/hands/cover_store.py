@@ -13,14 +13,12 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
-import tempfile
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ...cache import cache_root
+from ...cache import cache_root, write_atomically
 from .geometry import LinkGeometry
 from .spheres import SphereCover
 
@@ -82,11 +80,6 @@ def _write(path: Path, covers: Mapping[str, SphereCover]) -> None:
     for i, cover in enumerate(covers.values()):
         arrays[f"c{i}"], arrays[f"r{i}"], arrays[f"e{i}"] = cover.centers, cover.radii, cover.ends
         arrays[f"s{i}"] = np.array([cover.max_stray, cover.uncovered, cover.tolerance])
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as handle:
-            np.savez(handle, **arrays)
-        os.replace(tmp, path)
-    except OSError as exc:
-        _log.warning("cannot write sphere-cover cache %s: %s", path, exc)
+    error = write_atomically(path, lambda handle: np.savez(handle, **arrays))
+    if error is not None:
+        _log.warning("cannot write sphere-cover cache %s: %s", path, error)

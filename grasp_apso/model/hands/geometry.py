@@ -115,14 +115,14 @@ class LinkGeometry:
         """HandDescriptionError when the geometry is larger than any part of a hand
         (:data:`MAX_GEOMETRY_SPAN`): a file whose units are not what it says. (Scene
         obstacles are LinkGeometry too, and may be any size.)"""
-        span = self.span()
+        span = self._span()
         if span > MAX_GEOMETRY_SPAN:
             raise HandDescriptionError(
                 f"collision: {self.where}: {span:.3g} m across, more than any part of a hand "
                 f"({MAX_GEOMETRY_SPAN:g} m): are its units the file's? (a mesh drawn in mm needs the scale 0.001)",
                 field="collision")
 
-    def span(self) -> float:
+    def _span(self) -> float:
         """The largest extent of the geometry (m), without tessellating a primitive."""
         if self.kind == "mesh":
             return float(np.max(self.mesh.extents))

@@ -57,7 +57,9 @@ def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
     return path if path.is_absolute() else base_dir / path
 
 
-def _load_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
+def read_collision_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
+    """A URDF collision mesh file in metres, the URDF's own ``scale`` not applied (the
+    simulation reads the meshes MuJoCo cannot decode with it too)."""
     if not path.is_file():
         raise HandDescriptionError(f"{where}: collision mesh file {path} not found", field=where)
     if path.stat().st_size > max_bytes:
@@ -84,13 +86,6 @@ def _load_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
     return mesh
 
 
-def read_collision_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
-    """A URDF collision mesh file as the hand loader reads it (in metres, the file's own
-    scale not applied): for the simulation, which hands MuJoCo the formats it cannot
-    decode (COLLADA) converted."""
-    return _load_mesh(path, where, max_bytes)
-
-
 def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeometry | None:
     geom = collision.geometry
     origin = np.eye(4) if collision.origin is None else np.asarray(collision.origin, float)
@@ -105,7 +100,7 @@ def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeom
         return LinkGeometry("capsule", (capsule.radius, capsule.length / 2.0), origin, None, where)
     if geom.mesh is not None:
         path = resolve_mesh_path(geom.mesh.filename, base_dir)
-        mesh = _load_mesh(path, where, max_bytes).copy()
+        mesh = read_collision_mesh(path, where, max_bytes).copy()
         scale = geom.mesh.scale
         if scale is not None:
             mesh.apply_scale(np.broadcast_to(np.asarray(scale, float), (3,)))
