@@ -1,6 +1,7 @@
 """Guided Random Generation of a general hand (:mod:`grasp_apso.search.any_hand_grg`): the
 swarm asks for a few particles per iteration, so the generator verifies its draws in a pool
-of ``POOL_BATCH`` at a time, each call taking the batch it would have drawn from the pool.
+of ``POOL_BATCH`` at a time, each call taking the batch it would have drawn from the pool,
+and keeps the valid draws a call did not hand out for the next.
 
 Validity is checked by decoding the returned particles again (the decoder's legality and
 contact count, the property GRG promises), not by the generator's own flags.
@@ -78,6 +79,25 @@ def test_a_call_whose_batch_is_in_the_pool_decodes_nothing(setup):
     x = gen.draw(min(6, left // 4))  # a batch of 1.5 x k / (valid share) <= left
     assert (gen.evaluations, gen.batches) == (evaluations, 1)
     assert _valid(model, x).all()
+
+
+def test_valid_draws_a_call_does_not_hand_out_go_to_the_next_call(setup):
+    """A call's batch oversamples (DRAW_FACTOR): its valid draws beyond the k asked for
+    are the next call's first ones, not decoded again and not thrown away."""
+    model, shape = setup
+    gen = CountingGenerator(model, shape, np.random.default_rng(7))
+    first = gen.draw(20)
+    kept_good, kept_near = (a.copy() for a in gen._spare)
+    kept = len(kept_good) + len(kept_near)
+    assert kept > 0  # a batch of 1.5 x k / (valid share) left some
+    evaluations, batches = gen.evaluations, gen.batches
+    x = gen.draw(kept)
+    assert (gen.evaluations, gen.batches) == (evaluations, batches)  # nothing decoded
+    # the kept draws, scene-clear ones first, every one valid and none handed out twice
+    np.testing.assert_array_equal(x, np.concatenate([kept_good, kept_near]))
+    assert _valid(model, x).all()
+    assert len(np.unique(np.concatenate([first, x]), axis=0)) == len(first) + len(x)
+    assert all(len(a) == 0 for a in gen._spare)
 
 
 def test_the_preshape_layout_is_built_once_per_hand(setup):

@@ -161,6 +161,9 @@ class AnyHandGenerator:
         # the next one at _pool_at.
         self._pool = (np.empty((0, model.layout.dims)), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool))
         self._pool_at = 0
+        # Valid draws a call took but did not hand out (its batch oversamples): scene-clear
+        # ones and legal-but-for-the-scene ones, handed out first by the next calls.
+        self._spare = (np.empty((0, model.layout.dims)), np.empty((0, model.layout.dims)))
 
     def _verified(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Regenerate illegal fingers in bounded rounds (only the changed particles are
@@ -217,14 +220,15 @@ class AnyHandGenerator:
 
     def draw(self, k: int) -> np.ndarray:
         """k particles: valid ones first (scene-clear ones, then legal but for the scene);
-        filled with the last batch's others when the bounded rounds find fewer. Each batch
-        is sized by the valid share seen so far and taken from the pool (:meth:`_take`): the
-        same draws, in distribution, as a batch sampled for this call. PlanningError when
-        no draw decodes to a valid grasp."""
-        found: list[np.ndarray] = []
-        close: list[np.ndarray] = []
-        spare: np.ndarray | None = None
-        count = 0
+        filled with the last batch's others when the bounded rounds find fewer. The valid
+        draws earlier calls took but did not hand out come first; then batches sized by the
+        valid share seen so far, taken from the pool (:meth:`_take`); the valid draws this
+        call does not hand out are kept for the next. PlanningError when no draw decodes to
+        a valid grasp."""
+        found: list[np.ndarray] = [self._spare[0]]
+        close: list[np.ndarray] = [self._spare[1]]
+        others: np.ndarray | None = None  # the last batch's draws that are not valid
+        count = len(self._spare[0]) + len(self._spare[1])
         for _ in range(DRAW_ROUNDS):
             if count >= k or (self.should_stop is not None and self.should_stop()):
                 break
@@ -234,8 +238,11 @@ class AnyHandGenerator:
             found.append(x[good])
             close.append(x[near])
             count += int(good.sum()) + int(near.sum())
-            spare = x[~good & ~near]
-        valid = np.concatenate(found + close) if found else np.empty((0, self.model.layout.dims))
+            others = x[~good & ~near]
+        good = np.concatenate(found)
+        valid = np.concatenate([good] + close)
+        # what this call does not hand out (valid[k:]) waits for the next, in its kind
+        self._spare = (good[k:], valid[max(k, len(good)):])
         if len(valid) == 0 and not (self.should_stop is not None and self.should_stop()):
             raise PlanningError(
                 f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "
@@ -243,6 +250,6 @@ class AnyHandGenerator:
                 "contacts; the object may be too large or too small for this hand")
         if len(valid) >= k:
             return valid[:k]
-        rest = spare if spare is not None and len(spare) else sample_any(self.model, self.shape, k, self.rng)
+        rest = others if others is not None and len(others) else sample_any(self.model, self.shape, k, self.rng)
         fill = rest[self.rng.integers(0, len(rest), k - len(valid))]
         return np.concatenate([valid, fill]) if len(valid) else fill
