@@ -23,22 +23,30 @@ os.environ['PYTHONPATH'] = os.pathsep.join([REPO_ROOT] + _pp)
 import pytest  # noqa: E402
 
 
-@pytest.fixture(scope="module")
-def allegro_cube_grasp(tmp_path_factory):
-    """(hand, cube, best candidate): the Allegro-like URDF hand (mixed mesh and primitive
-    links) planned on the built-in cube resting on a table, seed 0, a small swarm; the
-    grasp the exact-geometry steps (seating, touching) are tested on."""
+def plan_allegro_cube(hand, seed: int):
+    """(cube, best candidate): ``hand`` planned on the built-in cube resting on a table,
+    a small swarm, seed ``seed``."""
     import numpy as np
 
     from grasp_apso.model.builtin import builtin
-    from grasp_apso.model.hands.load import load_hand
     from grasp_apso.model.scene import Scene
     from grasp_apso.search.planner import PlanOptions, plan
-    from hand_files import write_allegro_like
 
-    hand = load_hand(write_allegro_like(tmp_path_factory.mktemp("hand"), "mixed"))
     cube = builtin("cube")
     table = Scene.table_under(np.asarray(cube.mesh.vertices))
     result = plan(cube, options=PlanOptions(particles=30, iterations=20, max_grasps=1),
-                  rng=np.random.default_rng(0), hand=hand, scene=table)
-    return hand, cube, result.candidates[0]
+                  rng=np.random.default_rng(seed), hand=hand, scene=table)
+    return cube, result.candidates[0]
+
+
+@pytest.fixture(scope="module")
+def allegro_cube_grasp(tmp_path_factory):
+    """(hand, cube, best candidate): the Allegro-like URDF hand (mixed mesh and primitive
+    links) planned on the built-in cube resting on a table, seed 0, a small swarm
+    (:func:`plan_allegro_cube`); the grasp the exact-geometry steps (seating, touching) are
+    tested on."""
+    from grasp_apso.model.hands.load import load_hand
+    from hand_files import write_allegro_like
+
+    hand = load_hand(write_allegro_like(tmp_path_factory.mktemp("hand"), "mixed"))
+    return (hand, *plan_allegro_cube(hand, 0))

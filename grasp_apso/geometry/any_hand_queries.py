@@ -131,7 +131,8 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
     First GJK against the object's convex hull (a solid ``fcl.Convex``: quick, a lower
     bound for a non-convex object, within ~0.4 mm for a convex one), a mesh part's own
     convex hull first (a mesh part whose hull stays ``exact_within`` away keeps that
-    lower bound; one whose hull is nearer but apart goes to the exact query directly);
+    lower bound; one whose hull is nearer but apart, or touches a non-convex object's
+    hull, goes to the exact query directly);
     parts it finds within ``exact_within`` (m) are measured exactly: on the
     BVH, a sphere by the mesh's exact signed distance at its centre. Beyond it the value
     is a lower bound (a primitive against a convex object: within ~0.4 mm). fcl finds a part wholly inside a
@@ -159,7 +160,9 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
             hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
             out[i] = fcl_distance(hulls[k], hull)
             far[i] = out[i] >= exact_within
-            if out[i] > TOUCH_EPS:
+            if out[i] > TOUCH_EPS or not shape.convex:
+                # Hulls that touch, the object not convex: the exact query decides (its
+                # BVH against the object's hull, about as slow, could only spare it).
                 continue
         out[i] = fcl_distance(objs[k], hull)
     deep = out <= TOUCH_EPS
