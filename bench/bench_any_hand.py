@@ -5,6 +5,7 @@ Rerunnable, not a test::
 
     .venv/bin/python bench/bench_any_hand.py                 # defaults: 3 runs, 4 objects
     .venv/bin/python bench/bench_any_hand.py --runs 1 --objects cube   # quick look
+    .venv/bin/python bench/bench_any_hand.py --runs 2 --objects all --hands /path/to/leap_hand_right.urdf  # 21 objects
     .venv/bin/python bench/bench_any_hand.py --hands shadow inspire allegro_like \\
         /path/to/allegro_hand_right.urdf /path/to/leap_hand_right.urdf   # other hands' files too
 
@@ -43,7 +44,7 @@ for p in (REPO_ROOT, REPO_ROOT / "test"):
         sys.path.insert(0, str(p))
 
 from grasp_apso.errors import PlanningError  # noqa: E402
-from grasp_apso.model.builtin import builtin  # noqa: E402
+from grasp_apso.model.builtin import BUILTIN_OBJECTS, builtin  # noqa: E402
 from grasp_apso.model.hands.load import load_hand  # noqa: E402
 from grasp_apso.model.mesh_files import from_file  # noqa: E402
 from grasp_apso.model.scene import Scene  # noqa: E402
@@ -54,10 +55,24 @@ TARGET_RATIO = 2.5
 DEFAULT_HANDS = ["shadow", "inspire", "allegro_like"]
 
 
+MESHES = REPO_ROOT / "grasp_apso" / "data" / "meshes"
+
+
+def _object_names(names: list[str]) -> list[str]:
+    """``all``: the built-ins and every shipped mesh (as ``bench/held_rate.py`` plans them)."""
+    if names == ["all"]:
+        return list(BUILTIN_OBJECTS) + sorted(p.stem for p in MESHES.glob("*.stl"))
+    return names
+
+
 def _object(name: str):
-    if name == "mug":
-        return from_file(str(REPO_ROOT / "grasp_apso" / "data" / "meshes" / "mug.stl"))
-    return builtin(name)
+    """A built-in object, or a mesh shipped in ``grasp_apso/data/meshes`` by its stem."""
+    if name in BUILTIN_OBJECTS:
+        return builtin(name)
+    path = MESHES / f"{name}.stl"
+    if not path.exists():
+        raise SystemExit(f"--objects: {name!r} is neither a built-in object nor a shipped mesh")
+    return from_file(str(path))
 
 
 def _hands(names: list[str]) -> dict:
@@ -121,6 +136,7 @@ def summarise(rec: dict, objects: list[str]) -> list[dict]:
         cpu = statistics.median(r["cpu"])
         rows.append({
             "hand": h, "per_object": {o: statistics.median(r["wall"][o]) for o in objects}, "median": median,
+            "mean": statistics.mean(wall_all(h)),
             "ratio": median / paper_wall, "cpu_median": cpu, "cpu_ratio": cpu / paper_cpu,
             "returned": float(np.mean(r["returned"])), "candidates_per_plan": float(np.mean(r["candidates"])),
             "candidate_fc": float(np.mean(r["fc"])) if r["fc"] else 0.0, "best_fc": float(np.mean(r["best_fc"])),
@@ -129,11 +145,11 @@ def summarise(rec: dict, objects: list[str]) -> list[dict]:
 
 
 def table(rows: list[dict], objects: list[str]) -> str:
-    lines = ["| hand | " + " | ".join(objects) + " | median (s) | / paper | CPU / paper | returned | cand./plan "
-             "| cand. FC | best FC |", "|---|" + "---|" * (len(objects) + 7)]
+    lines = ["| hand | " + " | ".join(objects) + " | median (s) | mean (s) | / paper | CPU / paper | returned "
+             "| cand./plan | cand. FC | best FC |", "|---|" + "---|" * (len(objects) + 8)]
     for r in rows:
         lines.append(f"| {r['hand']} | " + " | ".join(f"{r['per_object'][o]:.2f}" for o in objects)
-                     + f" | {r['median']:.2f} | {r['ratio']:.1f}x | {r['cpu_ratio']:.1f}x | {r['returned'] * 100:.0f}% "
+                     + f" | {r['median']:.2f} | {r['mean']:.2f} | {r['ratio']:.1f}x | {r['cpu_ratio']:.1f}x | {r['returned'] * 100:.0f}% "
                      f"| {r['candidates_per_plan']:.1f} | {r['candidate_fc'] * 100:.0f}% | {r['best_fc'] * 100:.0f}% |")
     return "\n".join(lines)
 
@@ -141,7 +157,8 @@ def table(rows: list[dict], objects: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=3, help="seeds per hand and object")
-    parser.add_argument("--objects", nargs="+", default=["cube", "sphere", "barrel", "mug"])
+    parser.add_argument("--objects", nargs="+", default=["cube", "sphere", "barrel", "mug"],
+                        help="built-in objects and shipped meshes by name; 'all': every one of them")
     parser.add_argument("--hands", nargs="+", default=DEFAULT_HANDS,
                         help="test hand names (shadow, inspire, allegro_like) or URDF / MJCF paths")
     parser.add_argument("--grasps", type=int, default=5)
@@ -151,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--runs: at least 1")
     warm_up()
     hands = _hands(args.hands)
-    objects = {name: _object(name) for name in args.objects}
+    objects = {name: _object(name) for name in _object_names(args.objects)}
     rows = summarise(run(hands, objects, args.runs, args.grasps), list(objects))
     print(table(rows, list(objects)))
     print(f"{args.runs} run(s) per hand and object; medians; target: each hand within {TARGET_RATIO}x of the paper hand")
