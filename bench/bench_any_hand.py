@@ -44,35 +44,20 @@ for p in (REPO_ROOT, REPO_ROOT / "test"):
         sys.path.insert(0, str(p))
 
 from grasp_apso.errors import PlanningError  # noqa: E402
-from grasp_apso.model.builtin import BUILTIN_OBJECTS, builtin  # noqa: E402
+from grasp_apso.model.builtin import BUILTIN_OBJECTS  # noqa: E402
 from grasp_apso.model.hands.load import load_hand  # noqa: E402
-from grasp_apso.model.mesh_files import from_file  # noqa: E402
 from grasp_apso.model.scene import Scene  # noqa: E402
 from grasp_apso.search.planner import PlanOptions, plan, warm_up  # noqa: E402
 from hand_files import installed_hand, write_allegro_like  # noqa: E402
+from held_rate import load as _object, mesh_names  # noqa: E402  (bench/, the script's folder)
 
 TARGET_RATIO = 2.5
 DEFAULT_HANDS = ["shadow", "inspire", "allegro_like"]
 
 
-MESHES = REPO_ROOT / "grasp_apso" / "data" / "meshes"
-
-
 def _object_names(names: list[str]) -> list[str]:
-    """``all``: the built-ins and every shipped mesh (as ``bench/held_rate.py`` plans them)."""
-    if names == ["all"]:
-        return list(BUILTIN_OBJECTS) + sorted(p.stem for p in MESHES.glob("*.stl"))
-    return names
-
-
-def _object(name: str):
-    """A built-in object, or a mesh shipped in ``grasp_apso/data/meshes`` by its stem."""
-    if name in BUILTIN_OBJECTS:
-        return builtin(name)
-    path = MESHES / f"{name}.stl"
-    if not path.exists():
-        raise SystemExit(f"--objects: {name!r} is neither a built-in object nor a shipped mesh")
-    return from_file(str(path))
+    """``all``: the built-ins and every shipped mesh, as ``bench/held_rate.py`` plans them."""
+    return list(BUILTIN_OBJECTS) + mesh_names() if names == ["all"] else names
 
 
 def _hands(names: list[str]) -> dict:

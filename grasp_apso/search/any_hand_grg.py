@@ -254,10 +254,10 @@ class AnyHandGenerator:
             close.append(x[near])
             count += int(good.sum()) + int(near.sum())
             others = x[~good & ~near]
-        good = np.concatenate(found)
-        valid = np.concatenate([good] + close)
+        clear = np.concatenate(found)  # the scene-clear draws (``good`` in the batches)
+        valid = np.concatenate([clear] + close)
         # what this call does not hand out (valid[k:]) waits for the next, in its kind
-        self._spare = (good[k:], valid[max(k, len(good)):])
+        self._spare = (clear[k:], valid[max(k, len(clear)):])
         if len(valid) == 0 and not (self.should_stop is not None and self.should_stop()):
             raise PlanningError(
                 f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "
