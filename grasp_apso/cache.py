@@ -193,18 +193,20 @@ _MB = 1024 * 1024
 
 #: The bounds of every object-derived cache, one place. Sizes: a signed-distance grid
 #: and its normal-spread grid are 240,000 float64 nodes (about 2 MB) each for the default
-#: node budget; a BVH about 300 bytes per triangle; convex parts a few kB per part.
+#: node budget; a BVH about 300 bytes per triangle; convex parts a few kB per part. The
+#: per-object caches hold as many objects as the node's object cache (``ros/worker.py``,
+#: 32): rebuilding an object's grids costs 0.3-0.6 s, more than a plan.
 CACHE_LIMITS: Mapping[str, CacheLimit] = {
-    "sdf_grid": CacheLimit(8, 256 * _MB),        # geometry.sdf: (mesh hash, grid options)
-    "normal_spread": CacheLimit(8, 256 * _MB),   # geometry.normal_spread: (mesh hash, options, radius)
-    "mesh_bvh": CacheLimit(8, 128 * _MB),        # geometry.collision: mesh hash
+    "sdf_grid": CacheLimit(32, 256 * _MB),       # geometry.sdf: (mesh hash, grid options)
+    "normal_spread": CacheLimit(32, 256 * _MB),  # geometry.normal_spread: (mesh hash, options, radius)
+    "mesh_bvh": CacheLimit(32, 128 * _MB),       # geometry.collision: mesh hash
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
     "hand_model": CacheLimit(16, 1024 * _MB),
     "hand_tables": CacheLimit(16, 256 * _MB),    # geometry.any_hand_tables: hand source hash
     "grg_layout": CacheLimit(16, 16 * _MB),      # search.any_hand_grg: hand source hash
     "hand_drawing": CacheLimit(8, 200 * _MB),    # presentation.hand_geometry: (hand, decimation)    # model.hands.load: (description + config hash, folder, ...)
     "hand_collision": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: (hand source hash, geometry digest)
-    "object_distance": CacheLimit(8, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)
+    "object_distance": CacheLimit(32, 256 * _MB),  # geometry.any_hand_shapes: mesh hash (BVH + exact distance)
     "sim_model": CacheLimit(8, 256 * _MB),       # simulation.any_hand_model: (mesh hash, hand, scene, settings)
 }
 

@@ -127,6 +127,24 @@ def test_named_caches_keep_their_byte_bounds():
     clear_caches("sdf_grid", "mesh_bvh")
 
 
+def test_object_caches_hold_every_object_the_node_keeps():
+    """A node cycling through its cached objects must not rebuild their grids (0.3-0.6 s
+    each, more than a plan) in every plan: each per-object cache holds as many objects as
+    the node's object cache, and the grids' byte bounds fit that many grids of a real mesh."""
+    from grasp_apso.model.mesh_files import from_file
+    from grasp_apso.ros.worker import OBJECT_CACHE_ENTRIES
+    from grasp_apso.search.planner import prepare
+
+    for name in ("sdf_grid", "normal_spread", "mesh_bvh", "object_distance"):
+        assert CACHE_LIMITS[name].entries >= OBJECT_CACHE_ENTRIES, name
+    clear_caches("sdf_grid", "normal_spread")
+    prepare(from_file(Path(__file__).resolve().parents[1] / "grasp_apso" / "data" / "meshes" / "mug.stl"))
+    for name in ("sdf_grid", "normal_spread"):
+        one = named_cache(name).stats().nbytes
+        assert one > 0 and CACHE_LIMITS[name].nbytes >= OBJECT_CACHE_ENTRIES * one, name
+    clear_caches("sdf_grid", "normal_spread")
+
+
 def test_planner_caches_are_keyed_by_mesh_hash_and_bounded():
     from grasp_apso.geometry.collision import object_bvh
     from grasp_apso.model.builtin import builtin
