@@ -19,7 +19,8 @@ import pytest
 import trimesh
 
 from grasp_apso.errors import InputError
-from grasp_apso.geometry.any_hand_fcl import HandCollision, approach_report, object_report, scene_distance
+from grasp_apso.geometry.any_hand_fcl import (DEPTH_SLACK, TOUCH_TOLERANCE, HandCollision, approach_report, object_report,
+                                             scene_distance)
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.scene import BOX, SPHERE, Scene
 from hand_files import installed_hand, write_allegro_like
@@ -145,6 +146,29 @@ def test_a_hand_into_a_box_object_penetrates_and_one_a_centimetre_above_reports_
     inside[:3, 3] = 0.0
     report = object_report(hc, q, inside, trimesh.creation.box(extents=(1.5, 1.5, 1.5)))
     assert np.all(report.link_distance < -0.3) and not report.legal
+
+
+@pytest.mark.parametrize("name", ["shadow", "allegro"])
+def test_a_link_is_legal_only_the_samples_slack_inside_the_tolerance(hands, name):
+    """A link's depth is read at samples of its surface, which a denser check can find
+    deeper (DEPTH_SLACK): a hand 0.95 mm into the object is within the 1 mm tolerance but
+    not legal, 0.85 mm in it is (the open hand, its fingers apart)."""
+    hand = hands[name]
+    hc = HandCollision(hand)
+    rng = np.random.default_rng(3)
+    q = hand.open_configuration()
+    root = np.eye(4)
+    root[:3, :3] = _rotation(rng)
+    lowest = min(float(m.vertices[:, 2].min()) for m in _link_meshes(hand, q, root).values())
+    box = trimesh.creation.box(extents=(2.0, 2.0, 0.4))
+    for depth, legal in ((0.00085, True), (0.00095, False)):
+        placed = root.copy()
+        placed[2, 3] += 0.2 - depth - lowest
+        report = object_report(hc, q, placed, box)
+        assert report.deepest_penetration == pytest.approx(depth, abs=2e-5)
+        assert report.max_depth == pytest.approx(TOUCH_TOLERANCE - DEPTH_SLACK)
+        assert not report.link_pairs_colliding
+        assert report.legal is legal, (depth, report.deepest_penetration)
 
 
 @pytest.mark.parametrize("name", ["shadow", "allegro_meshes"])

@@ -48,12 +48,19 @@ from .any_hand_shapes import DECIDE_WITHIN, EXACT_WITHIN, HandShapes, hand_shape
 from .hand_fcl import CONTACT_ZONE, OBJECT_TOLERANCE, _approach_steps, _nonnegative, _pose, _scene_geometry
 
 __all__ = ["HandCollision", "AnyHandReport", "AnyApproachReport", "object_report", "scene_distance",
-           "approach_report", "TOUCH_TOLERANCE", "ALLOWED_OVERLAP"]
+           "approach_report", "TOUCH_TOLERANCE", "ALLOWED_OVERLAP", "DEPTH_SLACK"]
 
 #: A link within this distance (m) of the object touches it (and may press this deep).
 TOUCH_TOLERANCE = 0.001
 #: Links of different fingers may overlap this much (m) before they collide (soft skins).
 ALLOWED_OVERLAP = 0.002
+#: m: a link's depth is read at samples of its surface 2.5 mm apart (``any_hand_shapes``);
+#: a face pressing into a curved surface reaches deeper between them, by up to about 0.1 mm
+#: on a 10 mm radius (an independent check with random samples read 1.005 mm where ours
+#: read less than the 1 mm tolerance: dex-urdf LEAP's thumb on the barrel). A link is legal
+#: only this much inside the tolerance (``AnyHandReport.max_depth``), and the seating opens
+#: a finger that is not.
+DEPTH_SLACK = 0.0001
 class HandCollision:
     """The exact collision geometry of one hand, ready for python-fcl queries.
 
@@ -169,9 +176,14 @@ class AnyHandReport:
     exact_within: float = EXACT_WITHIN
 
     @property
+    def max_depth(self) -> float:
+        """The deepest a link may read (m): ``tolerance`` less :data:`DEPTH_SLACK`."""
+        return max(0.0, self.tolerance - DEPTH_SLACK)
+
+    @property
     def legal(self) -> bool:
-        """No link deeper than ``tolerance`` in the object and no links colliding."""
-        return self.deepest_penetration <= self.tolerance and not self.link_pairs_colliding
+        """No link deeper than :attr:`max_depth` in the object and no links colliding."""
+        return self.deepest_penetration <= self.max_depth and not self.link_pairs_colliding
 
     def distance_of(self, link: str) -> float:
         """``link_distance`` of one link (KeyError naming it when it has no geometry)."""

@@ -122,7 +122,7 @@ def _general_fcl_text(report) -> str:
         return (f"legal: no link penetrates the object beyond {report.tolerance * 1000:g} mm, "
                 "no links collide")
     parts = []
-    if report.deepest_penetration > report.tolerance:
+    if report.deepest_penetration > report.max_depth:
         parts.append(f"{report.deepest_link} {report.deepest_penetration * 1000:.1f} mm into the object")
     if report.link_pairs_colliding:
         parts.append("colliding links: " + ", ".join(f"{a}-{b}" for a, b in report.link_pairs_colliding))

@@ -5,7 +5,8 @@ a link's exact mesh may stick out of its cover by a millimetre or two where the 
 is thin (measured: LEAP's thumb fingertip, 1.0 to 1.4 mm into a cube in every one of 40
 otherwise valid grasps, so no cube plan with that hand passed the python-fcl check).
 :func:`seat_fingers` opens each finger whose exact geometry presses deeper than the
-python-fcl tolerance back along its own closing path, by bisection, until it rests within
+python-fcl check allows (``AnyHandReport.max_depth``: the tolerance less the samples'
+slack) back along its own closing path, by bisection, until it rests within
 :data:`SEAT_DEPTH`, the way a position-controlled finger stops on the surface: the
 verification then decides on the seated posture.
 """
@@ -120,10 +121,9 @@ def seat_fingers(fcl_api, hc, hand, q: np.ndarray, q_open: np.ndarray, root: np.
         body touches (a curved fingertip meeting a small object
         below its pad point: the dex-urdf Barrett's distal link on the sphere).
     """
-    tol = float(report.tolerance)
     fingers = hc.shapes.finger
     rest = np.zeros(len(hand.fingers), dtype=bool)
-    deep = np.flatnonzero(report.link_distance < -tol)
+    deep = np.flatnonzero(report.link_distance < -report.max_depth)
     if not len(deep) or np.any(fingers[deep] < 0) or report.link_pairs_colliding:
         return q, report, rest
     from ..geometry.any_hand_shapes import object_shape
