@@ -199,6 +199,7 @@ def run_case(task: tuple) -> dict:
         row.update(error=f"{type(exc).__name__}: {exc}", plan_s=time.perf_counter() - t0)
         return row
     row["plan_s"] = time.perf_counter() - t0
+    row["message"] = result.candidates_message
     for cand in result.candidates:
         pts = np.array([c.position for c in cand.contacts]).reshape(-1, 3)
         nrm = np.array([c.normal for c in cand.contacts]).reshape(-1, 3)

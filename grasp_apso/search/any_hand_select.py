@@ -47,6 +47,13 @@ from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate,
 
 __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture", "best_class"]
 
+#: With ``simulate``: a grasp that dropped is simulated once more with its squeeze at this
+#: share of the force (the balanced forces' ``squeeze_force``, or the uniform squeeze's
+#: angle); when that holds, the grasp is held and its reply carries that squeeze. Of 61
+#: dropped candidates (Shadow, Inspire, Allegro-like, 21 objects, seed 0) 11 held at half
+#: the force, none at 0.25, 1.5 or no squeeze that did not also hold at half.
+SOFT_SQUEEZE = 0.5
+
 #: The squeeze (rad or m) when the simulation settings are not importable.
 SQUEEZE = math.radians(8.0)
 #: Largest closing imbalance (net wrench of the squeezing forces / their sum) of a grasp
@@ -102,6 +109,7 @@ class AnyChecked:
     robust_epsilon: float = 0.0
     forces: np.ndarray | None = None   # (contacts, 3) N, the squeeze's contact forces (None: uniform squeeze)
     closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
+    fallback: bool = False             # simulate: below the others' class, simulated after them
 
     @property
     def balanced(self) -> bool:
@@ -284,9 +292,10 @@ def _closing(model, decoded, obj) -> tuple[float, bool]:
     return imbalance, True
 
 
-def _squeeze(model, decoded, obj, mu: float, settings, report=None) -> tuple[np.ndarray, np.ndarray]:
+def _squeeze(model, decoded, obj, mu: float, settings, report=None,
+             share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """The squeeze of one decoded grasp and the contact forces (contacts, 3) N it exerts:
-    the friction-balanced forces of mean normal part ``squeeze_force``
+    the friction-balanced forces of mean normal part ``share * squeeze_force``
     (:func:`grasp_apso.quality.closing.balanced_forces`, friction ``mu``); with the
     python-fcl ``report`` the pads' exact distances to the object are taken up first."""
     fingers = np.flatnonzero(decoded.contact[0])
@@ -301,7 +310,7 @@ def _squeeze(model, decoded, obj, mu: float, settings, report=None) -> tuple[np.
                          if model.hand.fingers[f].pad_link in links else 0.0 for f in fingers])
         gaps = np.where(np.isfinite(gaps), gaps, 0.0)
     forces, _ = balanced_forces(points, normals, np.asarray(obj.center_of_mass, float),
-                                float(obj.characteristic_radius), mu, settings.squeeze_force)
+                                float(obj.characteristic_radius), mu, share * settings.squeeze_force)
     squeeze = squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root,
                                     forces @ inv[:3, :3].T, settings.kp, settings.max_torque, gaps=gaps)
     return squeeze, forces
@@ -425,24 +434,32 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
                 f"hand {model.hand.name!r} is valid and keeps the clearance ({options.clearance * 1000:.1f} mm) "
                 "from the support planes and obstacles at the grasp and along the approach", "scene")
         kept = [first]
-    dropped = 0
+    fallback: list[AnyChecked] = []
     if any(c.force_closure for c in kept):
         # Grasps without force closure are not returned next to ones with it: measured on the
         # Shadow hand, 1 of 46 held in the simulation (force closure: 31 of 55).
-        dropped = sum(not c.force_closure for c in kept)
+        fallback = [c for c in kept if not c.force_closure]
         kept = [c for c in kept if c.force_closure]
     if any(c.robust_epsilon > 0.0 for c in kept):
         # ... nor fragile ones (no force closure left once the normals' spread at an edge or
         # a rim is allowed for) next to robust ones: on 21 objects on a table, robust
         # candidates held 52 of 53 (Inspire), 31 of 34 (Allegro), 23 of 33 (LEAP); the
         # others 2 of 24, 3 of 13, 0 of 10.
-        dropped += sum(c.robust_epsilon <= 0.0 for c in kept)
+        fallback = [c for c in kept if c.robust_epsilon <= 0.0] + fallback
         kept = [c for c in kept if c.robust_epsilon > 0.0]
+    dropped = len(fallback)
     message = ""
     if len(kept) < options.max_grasps:
         message = (f"{len(kept)} of {options.max_grasps} grasps: the search kept {len(archive)} distinct leaders, "
                    f"{rejected} failed verification (legality, contacts, the scene and the approach)"
-                   + (f", {dropped} without (robust) force closure left out" if dropped else ""))
+                   + (f", {dropped} without (robust) force closure "
+                      + ("simulated last" if options.simulate else "left out") if dropped else ""))
+    if options.simulate:
+        # With the simulation they are its last resort: simulated after the others, and
+        # returned only when one of them holds and none of the others does (_simulate).
+        for c in fallback:
+            c.fallback = True
+        kept = kept + fallback
     if kept[0].note:
         message = (message + "; " if message else "") + kept[0].note
     return kept, message
@@ -493,13 +510,13 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
     return (1.0 - FITNESS_SHARE) * h / (h + HOLD_SCALE) + FITNESS_SHARE * fitness
 
 
-def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
+def squeeze_posture(model, q: np.ndarray, share: float = 1.0) -> np.ndarray:
     """The grasp posture q (n,) pushed the simulation's ``squeeze`` further along every
     joint's closing sense, within the limits: the same posture as
     :func:`grasp_apso.simulation.any_hand.squeezed_positions` (which imports MuJoCo, so it is
     not called for every plan)."""
     settings = _module("grasp_apso.simulation.settings")
-    amount = settings.SimulationSettings().squeeze if settings is not None else SQUEEZE
+    amount = share * (settings.SimulationSettings().squeeze if settings is not None else SQUEEZE)
     hand = model.hand
     out = np.array(q, dtype=float)
     for finger in hand.fingers:
@@ -508,17 +525,29 @@ def squeeze_posture(model, q: np.ndarray) -> np.ndarray:
     return np.clip(out, hand.lower, hand.upper)
 
 
+def _softer(model, c: AnyChecked, obj, options) -> tuple[np.ndarray, np.ndarray | None]:
+    """Grasp c's squeeze at :data:`SOFT_SQUEEZE` of its force: (posture (n,), contact
+    forces (contacts, 3) N, None for the uniform squeeze)."""
+    if c.forces is None:
+        return squeeze_posture(model, c.decoded.q[0], SOFT_SQUEEZE), None
+    return _squeeze(model, c.decoded, obj, options.friction, _sim_settings(), c.fcl, SOFT_SQUEEZE)
+
+
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
     """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
-    was tried, or ``should_stop``). Returns the grasps to rank (the held ones and those not
-    simulated; when none held, the first dropped ones), up to ``max_grasps``, their
-    results (None: not simulated) and a note."""
+    was tried, or ``should_stop``); one that drops is simulated again with a softer squeeze
+    (:func:`_softer`), which its reply keeps when that holds. Returns the grasps to rank
+    (the held ones and those not simulated; when none held, the first dropped ones), up to
+    ``max_grasps``, their results (None: not simulated) and a note. The ``fallback``
+    grasps (below the others' class, last in ``checked``) are returned only when they held."""
     sim = _module("grasp_apso.simulation.any_hand")
     if sim is None:
         return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
             "simulate: the MuJoCo check of a general hand is not available"
     held, other = [], []
-    stopped, failure = False, ""
+    # at most max_grasps dropped grasps are tried again (a search whose grasps all drop,
+    # the bowl or the flat marker, would double its simulations)
+    stopped, failure, softened, retried = False, "", 0, 0
     for position, c in enumerate(checked):
         if len(held) >= options.max_grasps:
             break
@@ -530,6 +559,14 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
         try:
             result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
                                            c.squeeze, scene, options.friction, should_stop=should_stop)
+            if not result.held and retried < options.max_grasps:  # squeezed more gently (SOFT_SQUEEZE)
+                retried += 1
+                squeeze, forces = _softer(model, c, obj, options)
+                soft = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                                             squeeze, scene, options.friction, should_stop=should_stop)
+                if soft.held:
+                    c.squeeze, c.forces, result = squeeze, forces, soft
+                    softened += 1
         except SimulationError as exc:  # the grasps stay, not simulated, and the reply says why
             failure = str(exc)
             other.extend((k, None) for k in checked[position:])
@@ -538,12 +575,16 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
     # Grasps that dropped in the simulation are not returned next to ones that held (as
     # grasps without force closure are not next to ones with it); with none held, the
     # best of them are, their sim_result saying so.
-    unsimulated = [(c, r) for c, r in other if r is None]
+    unsimulated = [(c, r) for c, r in other if r is None and not c.fallback]
     dropped = [(c, r) for c, r in other if r is not None]
-    chosen = (held + unsimulated if held else other)[:options.max_grasps]
+    chosen = (held + unsimulated if held else [(c, r) for c, r in other if not c.fallback])[:options.max_grasps]
     note = "simulation stopped at the time bound" if stopped else ""
     if held and dropped:
-        note = "; ".join(n for n in (note, f"{len(dropped)} grasps that dropped in the simulation left out") if n)
+        note = "; ".join(n for n in (note, f"{len(dropped)} {'grasp' if len(dropped) == 1 else 'grasps'} that "
+                                           "dropped in the simulation left out") if n)
+    if softened:
+        note = "; ".join(n for n in (note, f"{softened} held with a softer squeeze ({SOFT_SQUEEZE:g} of the force)")
+                         if n)
     if failure:
         note = f"not simulated: {failure}"
     return [c for c, _ in chosen], [r for _, r in chosen], note
