@@ -311,7 +311,7 @@ def test_a_grasp_that_held_with_the_softer_squeeze_is_returned_with_it(hands, mo
     """With ``simulate`` a grasp that drops is simulated once more with its squeeze at
     SOFT_SQUEEZE of the force; when that holds, the reply carries that squeeze, and a replay
     of the reply (the simulation called again with the candidate's own postures) holds."""
-    from grasp_apso.search.any_hand_select import SOFT_SQUEEZE
+    from grasp_apso.search.any_hand_squeeze import SOFT_SQUEEZE
     from grasp_apso.search.result import SIM_HELD
     from grasp_apso.simulation import any_hand as sim
 

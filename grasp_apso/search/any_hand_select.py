@@ -27,7 +27,6 @@ held or all were tried.
 
 from __future__ import annotations
 
-import importlib
 import math
 import time
 from dataclasses import dataclass
@@ -35,10 +34,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PlanningError, SimulationError
-from ..quality.closing import balanced_forces, closing_forces, squeeze_toward_forces
 from ..quality.measures import epsilon_quality
 from ..quality.robustness import normal_uncertainty, robust_epsilon
 from .any_hand_pads import final_decodings, pads_on
+from .any_hand_squeeze import (SOFT_SQUEEZE, balanced_squeeze, closing_imbalance, optional_module,
+                               sim_settings, softer_squeeze, squeeze_posture)
 from .archive import wrist_groups, wrists_distinct
 from .exact_seat import pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import touch_pads
@@ -47,15 +47,6 @@ from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate,
 
 __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture", "best_class"]
 
-#: With ``simulate``: a grasp that dropped is simulated once more with its squeeze at this
-#: share of the force (the balanced forces' ``squeeze_force``, or the uniform squeeze's
-#: angle); when that holds, the grasp is held and its reply carries that squeeze. Of 61
-#: dropped candidates (Shadow, Inspire, Allegro-like, 21 objects, seed 0) 11 held at half
-#: the force, none at 0.25, 1.5 or no squeeze that did not also hold at half.
-SOFT_SQUEEZE = 0.5
-
-#: The squeeze (rad or m) when the simulation settings are not importable.
-SQUEEZE = math.radians(8.0)
 #: Largest closing imbalance (net wrench of the squeezing forces / their sum) of a grasp
 #: ranked as robust: friction (mu 0.5) absorbs a net force of up to about mu times the total,
 #: half of it leaves a margin for the fingers that touch first.
@@ -118,14 +109,6 @@ class AnyChecked:
         return self.force_closure and self.robust_epsilon > 0.0 and self.imbalance <= MAX_IMBALANCE
 
 
-def _module(name: str):
-    """An optional module of another part of issue 21 (None until it is merged)."""
-    try:
-        return importlib.import_module(name)
-    except ImportError:
-        return None
-
-
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     """The analytic part of the verification of one decoded grasp (no collision check):
     legality and the closing imbalance; the epsilon, force closure and robust epsilon
@@ -136,7 +119,7 @@ def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    imbalance, balanced = _closing(model, decoded, obj)
+    imbalance, balanced = closing_imbalance(model, decoded, obj)
     squeeze = None if balanced else squeeze_posture(model, decoded.q[0])
     c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
                    None, "", imbalance, squeeze, 0.0)
@@ -187,9 +170,9 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
     if c.fcl.legal:  # (a grasp refused at the object stays refused)
         q = _touch(model, c, fcl_api, hc, q, root, options, obj, rest)
     c.valid = c.valid and bool(c.fcl.legal)
-    settings = _sim_settings()
+    settings = sim_settings()
     if settings is not None and c.squeeze is None:
-        c.squeeze, c.forces = _squeeze(model, decoded, obj, options.friction, settings, c.fcl)
+        c.squeeze, c.forces = balanced_squeeze(model, decoded, obj, options.friction, settings, c.fcl)
     if scene is not None and c.valid:  # (an invalid grasp is refused whatever its approach)
         root_plan = pose @ root
         approach = pose[:3, :3] @ (root[:3, :3] @ model.tables.basis[:, 2])
@@ -240,7 +223,7 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     if not np.array_equal(q_new, q):  # (a pad body resting as seated leaves the posture)
         c.fcl = fcl_api.object_report(hc, q_new, root, obj)
     c.valid = c.valid and int(decoded.contact[0].sum()) >= 2
-    c.imbalance, balanced = _closing(model, decoded, obj)
+    c.imbalance, balanced = closing_imbalance(model, decoded, obj)
     c.epsilon, c.force_closure, c.robust_epsilon = 0.0, False, 0.0
     _closure(c, options, obj)
     c.squeeze = None if balanced else squeeze_posture(model, q_new)
@@ -269,51 +252,6 @@ def opened(hand, q_pre: np.ndarray, fraction: float) -> np.ndarray:
                 limit = hand.lower[j] if sense > 0 else hand.upper[j]
                 out[j] += fraction * (limit - out[j])
     return out
-
-
-def _sim_settings():
-    settings = _module("grasp_apso.simulation.settings")
-    return settings.SimulationSettings() if settings is not None else None
-
-
-def _closing(model, decoded, obj) -> tuple[float, bool]:
-    """The closing imbalance of one decoded grasp (normal forces of mean ``squeeze_force``,
-    :func:`grasp_apso.quality.closing.closing_forces`) and whether its squeeze aims at
-    balanced contact forces (:func:`_squeeze`); with fewer than two contacts, or without
-    the simulation's settings, imbalance 1 and the uniform squeeze."""
-    mask = decoded.contact[0]
-    settings = _sim_settings()
-    if mask.sum() < 2 or settings is None:
-        return 1.0, False
-    fingers = np.flatnonzero(mask)
-    points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
-    imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
-                               float(obj.characteristic_radius), settings.squeeze_force)[1]
-    return imbalance, True
-
-
-def _squeeze(model, decoded, obj, mu: float, settings, report=None,
-             share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """The squeeze of one decoded grasp and the contact forces (contacts, 3) N it exerts:
-    the friction-balanced forces of mean normal part ``share * squeeze_force``
-    (:func:`grasp_apso.quality.closing.balanced_forces`, friction ``mu``); with the
-    python-fcl ``report`` the pads' exact distances to the object are taken up first."""
-    fingers = np.flatnonzero(decoded.contact[0])
-    points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
-    inv = np.linalg.inv(decoded.root[0])  # object -> root frame
-    points_root = points @ inv[:3, :3].T + inv[:3, 3]
-    normals_root = normals @ inv[:3, :3].T
-    gaps = None
-    if report is not None and getattr(report, "link_distance", None) is not None:
-        links = list(report.links)
-        gaps = np.array([float(report.link_distance[links.index(model.hand.fingers[f].pad_link)])
-                         if model.hand.fingers[f].pad_link in links else 0.0 for f in fingers])
-        gaps = np.where(np.isfinite(gaps), gaps, 0.0)
-    forces, _ = balanced_forces(points, normals, np.asarray(obj.center_of_mass, float),
-                                float(obj.characteristic_radius), mu, share * settings.squeeze_force)
-    squeeze = squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root,
-                                    forces @ inv[:3, :3].T, settings.kp, settings.max_torque, gaps=gaps)
-    return squeeze, forces
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene,
@@ -360,7 +298,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     # within each class below they are verified first
     on = pads_on(decoded)
     eligible.sort(key=lambda i: not on[i])
-    fcl_api = _module("grasp_apso.geometry.any_hand_fcl")
+    fcl_api = optional_module("grasp_apso.geometry.any_hand_fcl")
     hc = fcl_api.HandCollision(model.hand) if fcl_api is not None else None
     kept: list[AnyChecked] = []
     first: AnyChecked | None = None
@@ -379,7 +317,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
         nonlocal first, rejected
         checked = _verify(model, c, options, pose, obj, scene, fcl_api, hc)
         if checked.squeeze is None:  # not squeezed by the verification (no python-fcl)
-            checked.squeeze, checked.forces = _squeeze(model, checked.decoded, obj, options.friction, _sim_settings())
+            checked.squeeze, checked.forces = balanced_squeeze(model, checked.decoded, obj, options.friction,
+                                                               sim_settings())
         first = first or checked
         if checked.valid and checked.scene_clear:
             kept.append(checked)
@@ -510,37 +449,14 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
     return (1.0 - FITNESS_SHARE) * h / (h + HOLD_SCALE) + FITNESS_SHARE * fitness
 
 
-def squeeze_posture(model, q: np.ndarray, share: float = 1.0) -> np.ndarray:
-    """The grasp posture q (n,) pushed the simulation's ``squeeze`` further along every
-    joint's closing sense, within the limits: the same posture as
-    :func:`grasp_apso.simulation.any_hand.squeezed_positions` (which imports MuJoCo, so it is
-    not called for every plan)."""
-    settings = _module("grasp_apso.simulation.settings")
-    amount = share * (settings.SimulationSettings().squeeze if settings is not None else SQUEEZE)
-    hand = model.hand
-    out = np.array(q, dtype=float)
-    for finger in hand.fingers:
-        for joint, sense in zip(finger.joints, finger.closing):
-            out[hand.actuated_joints.index(joint)] += sense * amount
-    return np.clip(out, hand.lower, hand.upper)
-
-
-def _softer(model, c: AnyChecked, obj, options) -> tuple[np.ndarray, np.ndarray | None]:
-    """Grasp c's squeeze at :data:`SOFT_SQUEEZE` of its force: (posture (n,), contact
-    forces (contacts, 3) N, None for the uniform squeeze)."""
-    if c.forces is None:
-        return squeeze_posture(model, c.decoded.q[0], SOFT_SQUEEZE), None
-    return _squeeze(model, c.decoded, obj, options.friction, _sim_settings(), c.fcl, SOFT_SQUEEZE)
-
-
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
     """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
     was tried, or ``should_stop``); one that drops is simulated again with a softer squeeze
-    (:func:`_softer`), which its reply keeps when that holds. Returns the grasps to rank
+    (:func:`.any_hand_squeeze.softer_squeeze`), which its reply keeps when that holds. Returns the grasps to rank
     (the held ones and those not simulated; when none held, the first dropped ones), up to
     ``max_grasps``, their results (None: not simulated) and a note. The ``fallback``
     grasps (below the others' class, last in ``checked``) are returned only when they held."""
-    sim = _module("grasp_apso.simulation.any_hand")
+    sim = optional_module("grasp_apso.simulation.any_hand")
     if sim is None:
         return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
             "simulate: the MuJoCo check of a general hand is not available"
@@ -561,7 +477,7 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
                                            c.squeeze, scene, options.friction, should_stop=should_stop)
             if not result.held and retried < options.max_grasps:  # squeezed more gently (SOFT_SQUEEZE)
                 retried += 1
-                squeeze, forces = _softer(model, c, obj, options)
+                squeeze, forces = softer_squeeze(model, c, obj, options.friction)
                 soft = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
                                              squeeze, scene, options.friction, should_stop=should_stop)
                 if soft.held:
