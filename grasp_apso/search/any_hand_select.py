@@ -22,7 +22,9 @@ cones, :func:`grasp_apso.quality.closing.balanced_forces`; ``q + J^T f / kp``,
 :func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
 ``simulate`` the verified grasps are checked in MuJoCo
 (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
-held or all were tried.
+held or all were tried: a grasp that drops is tried once more with a softer squeeze
+(:mod:`.any_hand_squeeze`), and the grasps below the best class, left out without
+``simulate``, are simulated last.
 """
 
 from __future__ import annotations
@@ -452,10 +454,11 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
     """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
     was tried, or ``should_stop``); one that drops is simulated again with a softer squeeze
-    (:func:`.any_hand_squeeze.softer_squeeze`), which its reply keeps when that holds. Returns the grasps to rank
-    (the held ones and those not simulated; when none held, the first dropped ones), up to
-    ``max_grasps``, their results (None: not simulated) and a note. The ``fallback``
-    grasps (below the others' class, last in ``checked``) are returned only when they held."""
+    (:func:`.any_hand_squeeze.softer_squeeze`, at most ``max_grasps`` of them), which its
+    reply keeps when that holds. Returns the grasps to rank (the held ones and those not
+    simulated; when none held, the first dropped ones), up to ``max_grasps``, their results
+    (None: not simulated) and a note. The ``fallback`` grasps (below the others' class,
+    last in ``checked``) are returned only when they held."""
     sim = optional_module("grasp_apso.simulation.any_hand")
     if sim is None:
         return checked[:options.max_grasps], [None] * min(len(checked), options.max_grasps), \
