@@ -16,7 +16,8 @@ named by their file stem). Each hand plans each object resting on a table
 default 5), seeds 0..runs-1. The plans are interleaved (object, seed, then every hand in
 turn), so that a shared machine's load falls on every hand alike; hand loading, the
 compiled kernels' warm-up and the object's grids are excluded (one untimed plan per hand
-and object first). Object-major, as the object caches hold 8 objects.
+and object first). Object-major, so that no timed plan rebuilds an object's grids
+however many objects are planned (the object caches hold ``CACHE_LIMITS``' count).
 
 Reported per hand: the median wall time per object and over all plans, its ratio to the
 paper hand's (target of issue 21: at most 2.5), the median process CPU time's ratio (less
@@ -92,9 +93,9 @@ def run(hands: dict, objects: dict, runs: int, grasps: int) -> dict:
     tables = {name: Scene.table_under(np.asarray(obj.mesh.vertices)) for name, obj in objects.items()}
     rec = {h: {"wall": {o: [] for o in objects}, "cpu": [], "returned": [], "candidates": [], "fc": [],
                "best_fc": []} for h in hands}
-    # Object-major: the object caches (signed-distance grid, BVH) hold 8 objects
-    # (grasp_apso.cache.CACHE_LIMITS), so a seed-major order over more objects would
-    # time their rebuilds in every plan.
+    # Object-major: the object caches (signed-distance grid, BVH) are bounded
+    # (grasp_apso.cache.CACHE_LIMITS), and a seed-major order over more objects than they
+    # hold would time their rebuilds in every plan.
     for obj_name, obj in objects.items():
         for hand in hands.values():  # untimed: kernels, the hand's tables, the object's grids
             _plan_once(obj, hand, warm, 0, tables[obj_name])

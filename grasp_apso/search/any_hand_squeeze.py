@@ -62,7 +62,7 @@ def closing_imbalance(model, decoded, obj) -> tuple[float, bool]:
 
 
 def balanced_squeeze(model, decoded, obj, mu: float, settings, report=None,
-             share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                     share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """The squeeze of one decoded grasp and the contact forces (contacts, 3) N it exerts:
     the friction-balanced forces of mean normal part ``share * squeeze_force``
     (:func:`grasp_apso.quality.closing.balanced_forces`, friction ``mu``); with the
@@ -90,8 +90,8 @@ def squeeze_posture(model, q: np.ndarray, share: float = 1.0) -> np.ndarray:
     joint's closing sense, within the limits: the same posture as
     :func:`grasp_apso.simulation.any_hand.squeezed_positions` (which imports MuJoCo, so it is
     not called for every plan)."""
-    settings = optional_module("grasp_apso.simulation.settings")
-    amount = share * (settings.SimulationSettings().squeeze if settings is not None else SQUEEZE)
+    settings = sim_settings()
+    amount = share * (settings.squeeze if settings is not None else SQUEEZE)
     hand = model.hand
     out = np.array(q, dtype=float)
     for finger in hand.fingers:
