@@ -43,6 +43,10 @@ FALLBACK_SEEDS = 4
 #: Inspire plans (object, seed; the default swarm, simulate) whose first simulated grasp
 #: dropped and held with the softer squeeze (bench/held_rate.py --hand inspire --simulate).
 SOFTER_PLANS = (("mug", 2), ("master_chef_can", 2), ("phillips_screwdriver", 0))
+#: Allegro-like plans of the screwdriver (seeds; the default swarm, simulate) whose grasps
+#: all dropped in two searches and held in a later one (bench/held_rate.py --hand
+#: allegro_like --simulate: searches 3 and 4).
+LATER_SEARCH_SEEDS = (1, 2)
 #: m, the median pad gap at a hand's pre-grasps (measured 10-25 mm on the cube and the mug;
 #: the search's wide-open pre-shapes, 40-140 mm).
 NEAR_PRE_GRASP = 0.04
@@ -257,6 +261,41 @@ def test_simulate_ranks_held_grasps_first(hands):
             held = True
             break
     assert held, "no plan had a grasp that held"
+
+
+def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
+    """With ``simulate`` a plan whose grasps all dropped searches again, up to
+    ``SIMULATED_ROUNDS`` searches: it stops at the first search with a grasp that held and
+    returns only held grasps; a plan that never held searched the whole bound. The
+    searches are counted by spying on (not replacing) the selection."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS
+    from grasp_apso.search.result import SIM_HELD
+
+    select = any_hand_planner.select_any
+    calls = []
+
+    def counting(*args, **kwargs):
+        calls.append(None)
+        return select(*args, **kwargs)
+
+    monkeypatch.setattr(any_hand_planner, "select_any", counting)
+    obj = _object("phillips_screwdriver")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    options = PlanOptions(max_grasps=5, simulate=True)
+    held_late = []
+    for seed in LATER_SEARCH_SEEDS:
+        calls.clear()
+        result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["allegro"], scene=table)
+        sims = [c.sim_result for c in result.candidates]
+        assert 1 <= len(calls) <= SIMULATED_ROUNDS
+        if SIM_HELD in sims:
+            assert set(sims) == {SIM_HELD}, (seed, sims)
+            if len(calls) > 2:
+                held_late.append(seed)
+        else:
+            assert len(calls) == SIMULATED_ROUNDS, (seed, len(calls))
+    assert held_late, "no plan held only after its third search"
 
 
 def _verified_grasp(checked, cand):
