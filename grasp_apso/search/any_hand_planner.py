@@ -42,9 +42,10 @@ __all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_h
 #: master chef can), searched up to 8 times: held at search 3 (Shadow's screwdriver seed 0;
 #: the Allegro-like's bowl seeds 0 and 1, screwdriver seed 1), 4 (Inspire's master chef can
 #: seed 1, the Allegro-like's screwdriver seed 2), 5 (Shadow's screwdriver seed 2) and 6
-#: (Inspire's bowl seed 0); none at 7 or 8. A plan that never holds (the large marker) then
-#: takes about three times as long (Shadow 3.4 -> 5 s, Inspire's bowl 10 -> 13 s), within
-#: the request's time bound (``should_stop`` between searches).
+#: (Inspire's bowl seed 0); none at 7 or 8. Best grasps held, 63 plans each: Shadow 54 -> 56,
+#: Inspire 56 -> 58, Allegro-like 56 -> 60. A plan that never holds (the large marker, the
+#: bowl) takes longer: the slowest plans 3.7 -> 9.4 s (Shadow), 5.5 -> 12.5 s (Inspire),
+#: within the request's time bound (``should_stop`` between searches).
 SIMULATED_ROUNDS = 6
 #: Without ``simulate``, searches run at most this many times: another search when the
 #: best verified grasp of a round is not balanced robust force closure
