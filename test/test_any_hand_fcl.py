@@ -359,6 +359,91 @@ def test_finger_collisions_match_the_capsule_closed_form(hands):
     assert colliding >= 2  # the test postures do press fingers together
 
 
+def _link_parts(hand, q, root) -> dict[str, list[trimesh.Trimesh]]:
+    """The judge's surfaces, one closed mesh per collision geometry, placed."""
+    poses = hand.link_transforms(q)
+    out = {}
+    for link, geoms in hand.collision.items():
+        out[link] = []
+        for g in geoms:
+            m = g.to_trimesh()
+            m.apply_transform(root @ poses[link])
+            out[link].append(m)
+    return out
+
+
+def _link_depth(parts_a: list, parts_b: list, rng: np.random.Generator) -> float:
+    """The judge's overlap of two placed links (m): the deepest of their part pairs."""
+    return max(_depth(a, b, rng) for a in parts_a for b in parts_b)
+
+
+def _depth(mesh_a: trimesh.Trimesh, mesh_b: trimesh.Trimesh, rng: np.random.Generator) -> float | None:
+    """The judge's overlap of two placed closed meshes (m): the deepest of each one's surface
+    samples inside the other (trimesh's signed distance, > 0 inside; a lower bound of the
+    depth that separates them); None when their bounding boxes do not meet (apart)."""
+    lo, hi = np.maximum(mesh_a.bounds[0], mesh_b.bounds[0]), np.minimum(mesh_a.bounds[1], mesh_b.bounds[1])
+    if np.any(lo > hi):
+        return None
+    deepest = 0.0
+    for inner, outer in ((mesh_a, mesh_b), (mesh_b, mesh_a)):
+        points = inner.sample(5000, seed=int(rng.integers(1 << 30)))
+        points = points[np.all((points >= lo) & (points <= hi), axis=1)]
+        if len(points):
+            deepest = max(deepest, float(trimesh.proximity.signed_distance(outer, points).max()))
+    return deepest
+
+
+def _link_depth(parts_a: list, parts_b: list, rng: np.random.Generator) -> float | None:
+    """The judge's overlap of two placed links (m) over their part pairs; None: apart."""
+    depths = [d for d in (_depth(a, b, rng) for a in parts_a for b in parts_b) if d is not None]
+    return max(depths) if depths else None
+
+
+#: Rows of ``default_rng(0).uniform(lower, upper, (300, n))`` for the Shadow hand: the first
+#: six (row 3 presses the thumb's middle link about 1.2 mm into the palm) and row 292 (found
+#: by a search over 400 rows: the same link about 2.9 mm in).
+PALM_ROWS = (0, 1, 2, 3, 4, 5, 292)
+
+
+def test_a_finger_link_pressed_into_the_palm_collides(hands):
+    """A finger link deeper than PALM_OVERLAP in a palm link (not its parent, apart with the
+    hand open) is a self-collision: dex-urdf's Schunk SVH planned its thumb 1.7 mm into the
+    palm, which blocks the thumb in MuJoCo. Judged with trimesh on the Shadow hand's links
+    (the judge's depth is a lower bound of the separating depth, so a pair it reads deeper
+    than PALM_OVERLAP must be reported, and a pair whose boxes do not meet must not); the
+    pair is a link pair, not a finger pair."""
+    from grasp_apso.geometry.any_hand_fcl import PALM_OVERLAP
+
+    hand = hands["shadow"]
+    hc = HandCollision(hand)
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.01)
+    far = np.eye(4)
+    far[:3, 3] = [1.0, 0.0, 0.0]  # the object far away
+    fingers = {link for f in hand.fingers for link in hand.finger_links(f) if link in hand.collision}
+    rng = np.random.default_rng(3)  # the judge's samples
+    opened = _link_parts(hand, hand.open_configuration(), far)
+    pairs = [(hand.root_link, link) for link in fingers
+             if hand.chain(link)[-2] != hand.root_link and not _link_depth(opened[hand.root_link], opened[link], rng)]
+    assert pairs
+    rows = np.random.default_rng(0).uniform(hand.lower, hand.upper, (300, hand.n_joints))
+    judged = 0
+    for q in rows[list(PALM_ROWS)]:
+        report = object_report(hc, q, far, ball)
+        found = {frozenset(p) for p in report.link_pairs_colliding}
+        parts = _link_parts(hand, q, far)
+        for p, link in pairs:
+            depth = _link_depth(parts[p], parts[link], rng)
+            if depth is None:
+                assert frozenset((p, link)) not in found, (p, link)
+            elif depth > PALM_OVERLAP:
+                assert frozenset((p, link)) in found, (p, link, depth)
+                assert not report.legal
+                judged += 1
+        names = [f.name for f in hand.fingers]
+        assert all(a in names and b in names for a, b in report.finger_pairs_colliding)
+    assert judged >= 1  # row 292 presses a finger into the palm
+
+
 def test_threads_share_one_hand_and_agree(hands):
     hand = hands["shadow"]
     hc = HandCollision(hand)

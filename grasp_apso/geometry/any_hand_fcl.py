@@ -9,7 +9,8 @@ or a BVH, built once per hand, per-thread collision objects), placed by
 - :func:`object_report`: per link the signed distance to the object (negative: the depth of
   its deepest point inside, see :mod:`.any_hand_shapes`), which links touch, the deepest
   penetration, and the link pairs of different fingers (or non-adjacent links of one
-  finger) that overlap by more than ``allowed_overlap``.
+  finger) that overlap by more than ``allowed_overlap``, and of a finger and the palm by
+  more than :data:`PALM_OVERLAP`.
 - :func:`scene_distance`: the least distance of the whole hand to a
   :class:`~grasp_apso.model.scene.Scene`. Support planes in closed form (each part's support
   function along the plane normal: exact at any distance, for every part at once);
@@ -54,6 +55,10 @@ __all__ = ["HandCollision", "AnyHandReport", "AnyApproachReport", "object_report
 TOUCH_TOLERANCE = 0.001
 #: Links of different fingers may overlap this much (m) before they collide (soft skins).
 ALLOWED_OVERLAP = 0.002
+#: A finger link may press this deep (m) into a palm link, as into the object
+#: (TOUCH_TOLERANCE): measured on dex-urdf's Schunk SVH, a thumb link 1.7 mm into the palm
+#: at its opposition limit, which in MuJoCo blocks the thumb with 200-500 N.
+PALM_OVERLAP = TOUCH_TOLERANCE
 #: m: a link's depth is read at samples of its surface 2.5 mm apart (``any_hand_shapes``);
 #: a face pressing into a curved surface reaches deeper between them, by up to about 0.1 mm
 #: on a 10 mm radius (an independent check with random samples read 1.005 mm where ours
@@ -116,15 +121,17 @@ class HandCollision:
             self.shapes._default_pairs = cached  # benign race: every thread computes the same
         return cached
 
-    def checked_pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """(a, b) part indices checked for self-collision (candidates minus the default ones)."""
+    def checked_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(a, b) part indices checked for self-collision (candidates minus the default
+        ones) and (len(a),) bool, the pairs with a palm part."""
         a, b = self.shapes.pair_candidates
+        palm = self.shapes.palm_pair
         da, db = self._default_pairs()
         if len(da) == 0:
-            return a, b
+            return a, b, palm
         k = len(self.shapes.geoms)
         keep = ~np.isin(a * k + b, da * k + db)
-        return a[keep], b[keep]
+        return a[keep], b[keep], palm[keep]
 
 
 def _check(hc) -> HandCollision:
@@ -201,14 +208,17 @@ def _link_min(hc: HandCollision, part_values: np.ndarray) -> np.ndarray:
 def self_collisions(hc: HandCollision, poses: np.ndarray, allowed_overlap: float = ALLOWED_OVERLAP
                     ) -> tuple[tuple[str, str], ...]:
     """Link pairs (names) of :meth:`HandCollision.checked_pairs` overlapping by more than
-    ``allowed_overlap`` (m) at part ``poses`` (K, 4, 4) (from :meth:`HandCollision.part_poses`)."""
-    a, b = hc.checked_pairs()
+    ``allowed_overlap`` (m; a pair with a palm link: at most :data:`PALM_OVERLAP`) at part
+    ``poses`` (K, 4, 4) (from :meth:`HandCollision.part_poses`)."""
+    a, b, palm = hc.checked_pairs()
     if len(a) == 0:
         return ()
+    allowed = np.where(palm, min(allowed_overlap, PALM_OVERLAP), allowed_overlap)
     parts = np.union1d(a, b)
-    d = part_pair_distances(hc.shapes, hc.place(poses, parts), poses, a, b, -allowed_overlap)
+    # every pair that can come below its own allowance measured exactly (the rest: lower bounds)
+    d = part_pair_distances(hc.shapes, hc.place(poses, parts), poses, a, b, -float(allowed.min()))
     pairs: list[tuple[str, str]] = []
-    for i in np.flatnonzero(d < -allowed_overlap):
+    for i in np.flatnonzero(d < -allowed):
         key = (hc.links[hc.shapes.part_link[a[i]]], hc.links[hc.shapes.part_link[b[i]]])
         if key not in pairs:
             pairs.append(key)
@@ -258,6 +268,8 @@ def object_report(hc: HandCollision | HandModel, q: np.ndarray, root_in_object: 
     finger_pairs: list[tuple[str, str]] = []
     for la, lb in pairs:
         fa, fb = hc.shapes.finger[hc.links.index(la)], hc.shapes.finger[hc.links.index(lb)]
+        if min(fa, fb) < 0:  # a finger in the palm: a link pair, no finger pair
+            continue
         key = (names[min(fa, fb)], names[max(fa, fb)])
         if fa != fb and key not in finger_pairs:
             finger_pairs.append(key)

@@ -223,14 +223,23 @@ class HandShapes:
     @cached_property
     def pair_candidates(self) -> tuple[np.ndarray, np.ndarray]:
         """(a, b) part indices of the self-collision pairs: parts of links of different
-        fingers, or of one finger's links that are not adjacent (a link and its nearest
-        ancestor with geometry)."""
+        fingers, of one finger's links that are not adjacent (a link and its nearest
+        ancestor with geometry), and of a finger link and a palm link (no finger's: the
+        root and the links fixed with it) that are not adjacent (a thumb link swung into
+        the palm)."""
         la, lb = self.part_link[:, None], self.part_link[None, :]
         fa, fb = self.finger[la], self.finger[lb]
         adjacent = (self.collision_parent[la] == lb) | (self.collision_parent[lb] == la)
-        keep = (fa >= 0) & (fb >= 0) & (la < lb) & ((fa != fb) | ~adjacent)
-        a, b = np.nonzero(keep)
+        fingers = (fa >= 0) & (fb >= 0) & ((fa != fb) | ~adjacent)
+        palm = ((fa < 0) != (fb < 0)) & ~adjacent
+        a, b = np.nonzero((la < lb) & (fingers | palm))
         return a.astype(np.int64), b.astype(np.int64)
+
+    @cached_property
+    def palm_pair(self) -> np.ndarray:
+        """(len(pair_candidates),) bool: the pair has a palm part."""
+        a, b = self.pair_candidates
+        return (self.finger[self.part_link[a]] < 0) | (self.finger[self.part_link[b]] < 0)
 
     def objects(self) -> list:
         """This thread's fcl collision objects of the parts (moved with setTransform)."""
