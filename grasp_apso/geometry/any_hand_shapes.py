@@ -224,9 +224,9 @@ class HandShapes:
     def pair_candidates(self) -> tuple[np.ndarray, np.ndarray]:
         """(a, b) part indices of the self-collision pairs: parts of links of different
         fingers, of one finger's links that are not adjacent (a link and its nearest
-        ancestor with geometry), and of a finger link and a palm link (no finger's: the
-        root and the links fixed with it) that are not adjacent (a thumb link swung into
-        the palm)."""
+        ancestor with geometry), and of a finger link and a palm link (a link no finger
+        carries: the root, the links fixed to it, the held ones above it) that are not
+        adjacent (a thumb link swung into the palm)."""
         la, lb = self.part_link[:, None], self.part_link[None, :]
         fa, fb = self.finger[la], self.finger[lb]
         adjacent = (self.collision_parent[la] == lb) | (self.collision_parent[lb] == la)
@@ -237,7 +237,7 @@ class HandShapes:
 
     @cached_property
     def palm_pair(self) -> np.ndarray:
-        """(len(pair_candidates),) bool: the pair has a palm part."""
+        """(len(a),) bool over :attr:`pair_candidates` (a, b): the pair has a palm part."""
         a, b = self.pair_candidates
         return (self.finger[self.part_link[a]] < 0) | (self.finger[self.part_link[b]] < 0)
 
