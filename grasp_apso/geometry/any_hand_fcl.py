@@ -215,8 +215,8 @@ def self_collisions(hc: HandCollision, poses: np.ndarray, allowed_overlap: float
         return ()
     allowed = np.where(palm, min(allowed_overlap, PALM_OVERLAP), allowed_overlap)
     parts = np.union1d(a, b)
-    # every pair that can come below its own allowance measured exactly (the rest: lower bounds)
-    d = part_pair_distances(hc.shapes, hc.place(poses, parts), poses, a, b, -float(allowed.min()))
+    # each pair measured exactly only where it can come below its own allowance
+    d = part_pair_distances(hc.shapes, hc.place(poses, parts), poses, a, b, -allowed)
     pairs: list[tuple[str, str]] = []
     for i in np.flatnonzero(d < -allowed):
         key = (hc.links[hc.shapes.part_link[a[i]]], hc.links[hc.shapes.part_link[b[i]]])

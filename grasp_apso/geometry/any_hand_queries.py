@@ -80,14 +80,16 @@ def _segments(shapes: HandShapes, poses: np.ndarray, parts: np.ndarray) -> tuple
 
 
 def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np.ndarray, b: np.ndarray,
-                        below: float) -> np.ndarray:
+                        below) -> np.ndarray:
     """Signed distances (m) of the part pairs (a[i], b[i]); pairs that cannot come below
-    ``below`` are left at a lower bound (their bounding spheres' gap, or for a pair with a
-    mesh part, the gap between the parts' convex hulls), not measured.
+    ``below`` (m, one for all pairs or (len(a),) one per pair) are left at a lower bound
+    (their bounding spheres' gap, or for a pair with a mesh part, the gap between the parts'
+    convex hulls), not measured.
 
     Rounded pairs in closed form (segment distance minus the radii, in one batch); the
     others fcl (``objs`` this thread's part objects, placed at ``poses``), then samples."""
     out = np.empty(len(a))
+    below = np.broadcast_to(np.asarray(below, dtype=float), (len(a),))
     both = shapes.rounded[a] & shapes.rounded[b]
     if both.any():
         p0, p1 = _segments(shapes, poses, a[both])
@@ -99,7 +101,7 @@ def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np
         ra, rb = a[rest], b[rest]
         out[rest] = np.linalg.norm(centre[ra] - centre[rb], axis=1) - shapes.bound_radius[ra] - shapes.bound_radius[rb]
         hulls = None
-        for idx in rest[out[rest] < below]:
+        for idx in rest[out[rest] < below[rest]]:
             i, j = int(a[idx]), int(b[idx])
             if not (shapes.primitive[i] and shapes.primitive[j]):
                 # The parts' hulls first: apart, they bound the pair's distance from below
@@ -112,7 +114,7 @@ def part_pair_distances(shapes: HandShapes, objs: list, poses: np.ndarray, a: np
                         hulls[k].setTransform(fcl.Transform(poses[k, :3, :3], poses[k, :3, 3]))
                         placed.add(k)
                 d = fcl_distance(hulls[i], hulls[j])
-                if d > max(below, TOUCH_EPS):
+                if d > max(float(below[idx]), TOUCH_EPS):
                     out[idx] = d
                     continue
             d = fcl_distance(objs[i], objs[j])
