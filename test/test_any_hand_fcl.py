@@ -52,16 +52,8 @@ def _rotation(rng: np.random.Generator) -> np.ndarray:
 
 def _link_meshes(hand, q, root) -> dict[str, trimesh.Trimesh]:
     """The judge's surfaces: every link's collision geometry, one mesh per link, placed."""
-    poses = hand.link_transforms(q)
-    out = {}
-    for link, geoms in hand.collision.items():
-        parts = []
-        for g in geoms:
-            m = g.to_trimesh()
-            m.apply_transform(root @ poses[link])
-            parts.append(m)
-        out[link] = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
-    return out
+    return {link: trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+            for link, parts in _link_parts(hand, q, root).items()}
 
 
 def _sphere_judge(meshes: dict, centre: np.ndarray, radius: float) -> dict[str, float]:
@@ -370,11 +362,6 @@ def _link_parts(hand, q, root) -> dict[str, list[trimesh.Trimesh]]:
             m.apply_transform(root @ poses[link])
             out[link].append(m)
     return out
-
-
-def _link_depth(parts_a: list, parts_b: list, rng: np.random.Generator) -> float:
-    """The judge's overlap of two placed links (m): the deepest of their part pairs."""
-    return max(_depth(a, b, rng) for a in parts_a for b in parts_b)
 
 
 def _depth(mesh_a: trimesh.Trimesh, mesh_b: trimesh.Trimesh, rng: np.random.Generator) -> float | None:
