@@ -18,7 +18,9 @@ import yourdfpy
 
 from grasp_apso.errors import HandDescriptionError
 from grasp_apso.model.hand import FINGER_NAMES, load_hand as load_paper_dh
+from grasp_apso.model.hands.description import lagging_couplings
 from grasp_apso.model.hands.load import load_hand
+from grasp_apso.model.hands.model import Coupling
 from hand_files import installed_hand, write_allegro_like
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,6 +102,15 @@ def test_shadow_distal_joints_follow_their_middle_joints(hands):
         assert f"robot0:{f}J0" not in hand.actuated_joints
     c = next(c for c in hand.couplings if c.follower == "robot0:FFJ0")
     assert c.multiplier == pytest.approx(0.00805 / 0.00705)  # the tendon's coefficients
+    # The tendon's length 0.00705 FFJ0 - 0.00805 FFJ1 may lie within +-0.001: FFJ0 has that
+    # much play, and the closing (FFJ1 increasing) drags it along the lower edge.
+    assert c.slack == pytest.approx(0.001 / 0.00705)
+    assert c.offset == pytest.approx(-0.001 / 0.00705)
+    # FFJ1's range keeps FFJ0 within its own [0, 1.571]
+    k = hand.actuated_joints.index("robot0:FFJ1")
+    assert hand.lower[k] == pytest.approx(0.001 / 0.00805)
+    assert hand.upper[k] == pytest.approx((1.571 * 0.00705 + 0.001) / 0.00805)
+    assert any("robot0:FFJ0: follows robot0:FFJ1 at the edge of its play" in n for n in hand.notes)
 
 
 def _mujoco_reference(hand, model, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -233,3 +244,21 @@ def test_loaded_once_and_cached_by_content(files, tmp_path):
         a.collision["r_palm"] = ()
     with pytest.raises(AttributeError):
         a.root_link = "x"
+
+
+@pytest.mark.parametrize("multiplier, sense, edge", [(1.14, 1, -0.1), (1.14, -1, 0.3), (-1.14, 1, 0.3),
+                                                     (-1.14, -1, -0.1)])
+def test_a_follower_with_play_follows_the_edge_its_closing_drags_it_along(multiplier, sense, edge):
+    """The follower lags its leader's closing: below the coupled value when that rises as the
+    leader closes, above it when it falls."""
+    coupling = Coupling("f", "l", multiplier, 0.1, "tendon t", 0.2)
+    moved, notes = lagging_couplings([coupling], {"l": sense})
+    assert moved[0].offset == pytest.approx(edge)
+    assert (moved[0].multiplier, moved[0].slack) == (multiplier, 0.2)
+    assert len(notes) == 1 and "joint f: follows l at the edge of its play" in notes[0]
+
+
+def test_couplings_without_play_or_a_closing_leader_stay():
+    assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.0)], {"l": 1}) is None
+    assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.2)], {"l": 0}) is None
+    assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.2)], {}) is None

@@ -10,7 +10,7 @@ linear map to every joint's value, coupling loops refused).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from ...errors import HandDescriptionError
 from .geometry import LinkGeometry
 from .model import Coupling, Motion, readonly
 
-__all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "rigid"]
+__all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "lagging_couplings", "rigid"]
 
 #: A leader whose followers' limits leave it a range narrower than this (rad or m) is held
 #: (:func:`_pinned_leaders`).
@@ -119,6 +119,33 @@ def _resolve(couplings: list[Coupling]) -> dict[str, tuple[str, float, float]]:
             mult, off, leader = mult * m2, mult * o2 + off, nxt
         out[follower] = (leader, mult, off)
     return out
+
+
+def lagging_couplings(couplings: list[Coupling], closing: dict[str, int]) -> tuple[list[Coupling], list[str]] | None:
+    """The couplings with play (``slack``) moved to the edge of it their closing drags the
+    follower along, with a note each; None when none has play and a leader with a closing
+    sense (``closing``: joint -> +1 / -1, 0 or absent: none).
+
+    A limited tendon holds its follower only at the edges of its range (the Shadow hand of
+    gymnasium-robotics: ``0.00705 FFJ0 - 0.00805 FFJ1`` within +-0.001 leaves FFJ0 0.14 rad
+    of play either side of ``1.14 FFJ1``). As the leader closes, the follower is pulled
+    along the edge behind the motion, so in the hand's own simulation it lags the middle of
+    the range by the whole play (MuJoCo: the distal joints 0.13 rad short, the fingertips
+    off their planned contacts). ``offset - sign(sense * multiplier) * slack`` is where the
+    closing leaves it."""
+    out, notes, moved = [], [], False
+    for c in couplings:
+        sense = closing.get(c.leader, 0)
+        if c.slack <= 0.0 or not sense or c.multiplier == 0.0:
+            out.append(c)
+            continue
+        edge = c.offset - math.copysign(c.slack, sense * c.multiplier)
+        out.append(replace(c, offset=edge))
+        moved = True
+        notes.append(f"joint {c.follower}: follows {c.leader} at the edge of its play ({c.source}: "
+                     f"{c.slack:.4g} either side) that the closing drags it along, offset {edge:.4g} "
+                     f"instead of {c.offset:.4g}")
+    return (out, notes) if moved else None
 
 
 def _leader_bounds(follower: RawJoint, mult: float, off: float) -> tuple[float, float] | None:
@@ -259,8 +286,8 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
             raw.notes.append(f"joint {leader}: range narrowed to [{lo:.4g}, {hi:.4g}] so that "
                              f"{follower} stays within its limits")
         lower_a[k], upper_a[k] = lo, hi
-    couplings = tuple(Coupling(f, l, mu, o, next(c.source for c in raw.couplings if c.follower == f))
-                      for f, (l, mu, o) in resolved.items())
+    direct = {c.follower: c for c in raw.couplings}
+    couplings = tuple(Coupling(f, l, mu, o, direct[f].source, direct[f].slack) for f, (l, mu, o) in resolved.items())
     return Kinematics(tuple(names), tuple(parents), readonly(origins), tuple(motions), tuple(joint_names),
                       tuple(j.name for j in actuated), readonly(lower_a), readonly(upper_a),
                       readonly(matrix), readonly(offset), couplings, hold_out)

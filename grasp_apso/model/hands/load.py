@@ -25,7 +25,7 @@ from ...cache import approximate_nbytes, cached
 from ...errors import HandDescriptionError
 from .config import HandConfig, read_config
 from .derive import derive_fingers, find_root, finger_label, finger_tips
-from .description import RawHand, kinematics
+from .description import RawHand, kinematics, lagging_couplings
 from .model import Finger, HandModel, readonly
 
 __all__ = ["load_hand", "hand_from_raw", "SUFFIXES"]
@@ -114,7 +114,26 @@ def _build(path: Path, kind: str, content: bytes, cfg: HandConfig, source_hash: 
 
 
 def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres: bool = True) -> HandModel:
-    """The HandModel of a loaded description, with the derivation and ``cfg`` applied."""
+    """The HandModel of a loaded description, with the derivation and ``cfg`` applied.
+
+    Followers with play (a limited tendon's coupling) follow the edge of it that the
+    closing drags them along (:func:`.description.lagging_couplings`): which edge depends
+    on the leaders' closing senses, so such a hand's kinematics and semantics are derived
+    again with the couplings moved there."""
+    notes = list(raw.notes)  # (the derivation adds to raw's)
+    bare, fingers, normal = _derived(raw, cfg, source_hash)
+    lagging = lagging_couplings(raw.couplings, {j: s for f in fingers for j, s in zip(f.joints, f.closing)})
+    if lagging is not None:
+        raw = replace(raw, couplings=lagging[0], notes=notes + lagging[1])
+        bare, fingers, normal = _derived(raw, cfg, source_hash)
+    covers = _spheres(bare, cfg) if spheres else {}
+    return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=MappingProxyType(covers),
+                   notes=tuple(raw.notes) + bare.notes)
+
+
+def _derived(raw: RawHand, cfg: HandConfig, source_hash: str) -> tuple[HandModel, tuple, np.ndarray]:
+    """The hand's kinematics (a HandModel without fingers, its ``notes`` the derivation's),
+    its fingers and its palm normal."""
     names = [link.name for link in raw.links]
     for link in raw.links:
         for geom in link.geoms:
@@ -157,9 +176,7 @@ def hand_from_raw(raw: RawHand, cfg: HandConfig, source_hash: str = "", spheres:
                                        field="hand_config.closing")
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
     fingers = tuple(_finger(bare, label, sem, cfg, normal) for label, sem in zip(labels, semantics))
-    covers = _spheres(bare, cfg) if spheres else {}
-    return replace(bare, fingers=fingers, palm_normal=readonly(normal), spheres=MappingProxyType(covers),
-                   notes=tuple(raw.notes) + tuple(notes))
+    return replace(bare, notes=tuple(notes)), fingers, normal
 
 
 def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[str]]:

@@ -12,6 +12,9 @@ mesh directories resolved; meshes as MuJoCo places them).
   fixed tendons over two joints whose length is held in a narrow range (a ``limited``
   tendon, as the Shadow hand of gymnasium-robotics couples its distal joints) or by a
   tendon equality. The follower is the joint without an actuator (else the distal one).
+  A limited tendon's coupling is the middle of its range with the rest as the follower's
+  ``slack``; the loaded hand follows the edge the closing drags it along
+  (:func:`.description.lagging_couplings`).
 - A visual mesh whose file is missing is dropped before compiling (with a note); a
   missing collision mesh is an error naming it.
 """
@@ -247,7 +250,8 @@ def _tendons(mujoco, model, raw, joint_names, actuated, depth) -> None:
         if span <= 0 or hi - lo > _NARROW_TENDON * span:
             continue
         tname = _name(mujoco, model, mujoco.mjtObj.mjOBJ_TENDON, t, "tendon")
-        _tendon_coupling(mujoco, model, raw, t, 0.5 * (lo + hi), f"tendon {tname}", joint_names, actuated, depth)
+        _tendon_coupling(mujoco, model, raw, t, 0.5 * (lo + hi), f"tendon {tname}", joint_names, actuated, depth,
+                         0.5 * (hi - lo))
 
 
 def _joint_wraps(mujoco, model, t: int):
@@ -260,7 +264,9 @@ def _joint_wraps(mujoco, model, t: int):
     return out
 
 
-def _tendon_coupling(mujoco, model, raw, t, length, source, joint_names, actuated, depth) -> None:
+def _tendon_coupling(mujoco, model, raw, t, length, source, joint_names, actuated, depth, play=0.0) -> None:
+    """The coupling of tendon t's two joints at ``length``; ``play``: how far the tendon's
+    length may stray from it (half a limited tendon's range), the follower's slack."""
     wraps = _joint_wraps(mujoco, model, t)
     if wraps is None or len(wraps) != 2:
         raw.notes.append(f"{source}: not a coupling of two joints, ignored")
@@ -282,4 +288,4 @@ def _tendon_coupling(mujoco, model, raw, t, length, source, joint_names, actuate
         follower_first = depth.get(n1, 0) > depth.get(n2, 0)
     (fj, fc), (lj, lc) = ((n1, c1), (n2, c2)) if follower_first else ((n2, c2), (n1, c1))
     # fc * qf + lc * ql = length  ->  qf = -lc/fc * ql + length/fc
-    raw.couplings.append(Coupling(fj, lj, -lc / fc, length / fc, source))
+    raw.couplings.append(Coupling(fj, lj, -lc / fc, length / fc, source, play / abs(fc)))

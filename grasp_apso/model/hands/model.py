@@ -67,13 +67,20 @@ class Finger:
 
 @dataclass(frozen=True)
 class Coupling:
-    """``follower = multiplier * leader + offset`` (rad or m), from ``source``."""
+    """``follower = multiplier * leader + offset`` (rad or m), from ``source``.
+
+    ``slack`` (rad or m): the play the file leaves the follower either side of that value
+    (a limited tendon's range; 0 for an equality or a URDF mimic). A follower with play
+    lags its leader: the closing drags it along the edge of its play behind the motion,
+    and the loaded hand's ``offset`` is that edge's
+    (:func:`~.description.lagging_couplings`)."""
 
     follower: str
     leader: str
     multiplier: float
     offset: float
     source: str
+    slack: float = 0.0
 
 
 @dataclass(frozen=True)
