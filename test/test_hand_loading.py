@@ -262,3 +262,24 @@ def test_couplings_without_play_or_a_closing_leader_stay():
     assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.0)], {"l": 1}) is None
     assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.2)], {"l": 0}) is None
     assert lagging_couplings([Coupling("f", "l", 1.14, 0.1, "tendon t", 0.2)], {}) is None
+
+
+def test_an_actuator_on_a_tendon_over_free_joints_is_noted(tmp_path):
+    """As MuJoCo Menagerie's Shadow hand drives each finger's two distal joints: a position
+    actuator on a fixed tendon (their sum). The planner moves the joints each on its own;
+    the note tells the user that the hand's controller takes their sum."""
+    from grasp_apso.model.hands.mjcf_loader import read_mjcf
+
+    xml = tmp_path / "finger.xml"
+    xml.write_text("""<mujoco><worldbody><body name="palm"><geom type="box" size="0.02 0.02 0.005"/>
+      <body name="middle" pos="0 0 0.01"><joint name="j2" axis="1 0 0" range="0 1.57"/>
+        <geom type="capsule" size="0.008 0.01" pos="0 0 0.01"/>
+        <body name="distal" pos="0 0 0.025"><joint name="j1" axis="1 0 0" range="0 1.57"/>
+          <geom type="capsule" size="0.008 0.01" pos="0 0 0.01"/></body></body></body></worldbody>
+      <tendon><fixed name="t0"><joint joint="j2" coef="1"/><joint joint="j1" coef="1"/></fixed></tendon>
+      <actuator><position name="a0" tendon="t0" ctrlrange="0 3.14"/></actuator></mujoco>""")
+    raw = read_mjcf(xml, 10**6)
+    assert not raw.couplings
+    assert any(n.startswith("actuator a0 drives tendon t0 (j2 + j1)") and "commands only this sum" in n
+               for n in raw.notes), raw.notes
+    assert not any(n.startswith("actuator ") for n in load_hand(installed_hand("shadow"), spheres=False).notes)

@@ -196,7 +196,32 @@ def read_mjcf(path: Path, max_mesh_bytes: int) -> RawHand:
     depth = {name: i for i, name in enumerate(j for link in raw.links for j in (x.name for x in link.joints))}
     _equalities(mujoco, model, raw, joint_names, qpos0, depth)
     _tendons(mujoco, model, raw, joint_names, actuated, depth)
+    _tendon_actuators(mujoco, model, raw, joint_names)
     return raw
+
+
+def _tendon_actuators(mujoco, model, raw, joint_names) -> None:
+    """A note for each actuator that drives a fixed tendon over joints no coupling ties (the
+    Shadow hand of MuJoCo Menagerie: ``rh_A_FFJ0`` drives ``rh_FFJ2 + rh_FFJ1``): how the
+    hand shares the tendon's motion among them is its dynamics', not kinematics, so the
+    planner (and its simulation, a servo per joint) moves each of them on its own, and the
+    hand's own controller can command only their weighted sum."""
+    following = {c.follower for c in raw.couplings}
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_TENDON:
+            continue
+        t = int(model.actuator_trnid[a, 0])
+        wraps = _joint_wraps(mujoco, model, t)
+        if not wraps or len(wraps) < 2 or any(j not in joint_names for j, _ in wraps):
+            continue
+        free = [(joint_names[j], c) for j, c in wraps if joint_names[j] not in following]
+        if len(free) < 2:
+            continue
+        total = " + ".join(f"{c:.4g} {n}" if c != 1.0 else n for n, c in free)
+        raw.notes.append(f"actuator {_name(mujoco, model, mujoco.mjtObj.mjOBJ_ACTUATOR, a, 'actuator')} drives tendon "
+                         f"{_name(mujoco, model, mujoco.mjtObj.mjOBJ_TENDON, t, 'tendon')} ({total}): the planner moves "
+                         "those joints each on its own (its simulation too, a servo per joint); the hand's own "
+                         "controller commands only this sum of theirs, so send it the sum of the grasp's values")
 
 
 def _equalities(mujoco, model, raw, joint_names, qpos0, depth) -> None:
