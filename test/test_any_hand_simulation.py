@@ -192,6 +192,27 @@ def test_squeeze_goes_along_the_closing_senses(hands):
     assert np.any(squeezed != q)
 
 
+@pytest.mark.parametrize("name", ["shadow", "adroit", "inspire", "fourier", "jaco", "robotiq_s"])
+def test_every_joint_closes_in_mujoco_where_the_hand_model_puts_it(name):
+    """The hand model against the hand's own simulation, followers included: from the open
+    hand, servo targets a fifth and two fifths of the way closed, far from anything (no
+    contact). A coupling the model reads otherwise than MuJoCo moves the joint (the Shadow
+    hand's distal joints at the middle of their tendons' play: 0.14 rad) fails here."""
+    hand = load_hand(installed_hand(name), spheres=False)
+    for fraction in (0.2, 0.4):
+        target = hand.closed_configuration(fraction)
+        sc, settings = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
+        sc.data.ctrl[:] = target
+        mujoco.mj_step(sc.model, sc.data, nstep=int(round(2.0 / settings.timestep)))
+        assert sc.data.ncon == 0  # nothing touches: only the servos and the couplings move the joints
+        m, model_q = sc.model, hand.full_positions(target)
+        moved = {j: sc.data.qpos[m.jnt_qposadr[m.joint(j).id]] - q for j, q in zip(hand.joint_names, model_q)
+                 if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) >= 0}
+        assert len(moved) >= len(hand.actuated_joints)
+        worst = max(moved, key=lambda j: abs(moved[j]))
+        assert abs(moved[worst]) < 0.04, (fraction, worst, moved[worst])
+
+
 @pytest.mark.parametrize("name", ["allegro_coupled", "shadow"])
 def test_servos_reach_a_commanded_posture(hands, name):
     hand = hands[name]
