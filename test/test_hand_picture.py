@@ -48,3 +48,16 @@ def test_unknown_finger_names_get_distinct_colours():
     names = ["finger_a", "finger_b", "finger_c", "index", "thumb"]
     colors = [finger_color(n, i) for i, n in enumerate(names)]
     assert len(set(colors)) == len(colors)
+
+
+def test_the_table_label_goes_to_the_corner_nothing_drawn_covers():
+    """The label of the table sits at the corner the camera sees farthest from the object
+    and the hand (it used to sit at the first corner, under a Shadow hand's forearm)."""
+    from grasp_apso.tools.scene_drawing import label_corner
+
+    corners = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0], [100.0, 100.0, 0.0], [0.0, 100.0, 0.0]])
+    obj = np.array([[50.0, 50.0, 10.0], [55.0, 45.0, 30.0]])
+    forearm = np.array([[x, x, 60.0] for x in np.linspace(50.0, 95.0, 10)])
+    top = np.array([0.0, 0.0, 1.0])
+    assert label_corner(corners, np.vstack([obj, forearm]), top) == 0        # away from the forearm
+    assert label_corner(corners, np.vstack([obj, forearm[::-1] * [-1, -1, 1] + [100, 100, 0]]), top) == 2

@@ -52,7 +52,7 @@ from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FI
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR)
 from .any_hand_drawing import draw_any_hand, finger_legend, hand_axes, hand_mesh_mm, pad_radius_mm
 from .scene_drawing import (MM, draw_approach, draw_contacts, draw_hand, draw_object, draw_obstacles, draw_table,
-                            palm_corners, table_patch)
+                            label_corner, palm_corners, table_patch)
 from .view3d import (MAX_DRAWN_TRIANGLES, decimate_for_drawing, framing, nice_length, save, scale_bar_and_triad,
                      screen_axes, transform, view_angles, zoom_to_content)
 
@@ -224,7 +224,7 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
     if scene is not None:
         for plane in scene.planes:
             corners = table_patch(np.asarray(plane), content)
-            draw_table(ax, corners, np.asarray(plane))
+            draw_table(ax, corners, np.asarray(plane), label_corner(corners, content, direction))
             pts.append(corners)
         pts.append(draw_obstacles(ax, scene, roi_lo, roi_hi))
     draw_object(ax, tris, com, grasp.palm_axes @ np.array([0.3, 0.5, 1.0]))

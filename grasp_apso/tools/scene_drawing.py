@@ -16,7 +16,7 @@ from ..presentation.palette import (APPROACH_COLOR, COM_COLOR, CONTACT_COLOR, FI
                       PALM_COLOR, PRE_GRASP_ALPHA, SCENE_COLOR, rgb)
 from .view3d import nice_length, shaded_colors, transform
 
-__all__ = ["MM", "box_corners", "palm_corners", "draw_object", "draw_hand", "draw_contacts", "table_patch",
+__all__ = ["MM", "box_corners", "palm_corners", "draw_object", "draw_hand", "draw_contacts", "table_patch", "label_corner",
            "draw_table", "obstacle_surfaces", "draw_obstacles", "draw_approach"]
 
 MM = 1000.0
@@ -124,9 +124,22 @@ def table_patch(plane: np.ndarray, content: np.ndarray) -> np.ndarray:
     return np.array([centre + su * half * u + sv * half * v for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
 
 
-def draw_table(ax, corners: np.ndarray, plane: np.ndarray) -> None:
+def label_corner(corners: np.ndarray, content: np.ndarray, direction: np.ndarray) -> int:
+    """Index of the table corner (corners (4, 3), mm) whose label place the camera looking
+    along ``direction`` (3,) sees farthest from everything drawn (content (k, 3) mm, the
+    object's and the hand's points): the label covers neither the object nor the hand (a
+    hand's forearm reaches out over one side of the table)."""
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    corners = np.asarray(corners, float)
+    places = corners + 0.12 * (corners.mean(axis=0) - corners)
+    gaps = places[:, None, :] - np.asarray(content, float)[None]   # (4, k, 3)
+    gaps -= (gaps @ d)[..., None] * d                             # as the picture shows them
+    return int(np.argmax(np.linalg.norm(gaps, axis=2).min(axis=1)))
+
+
+def draw_table(ax, corners: np.ndarray, plane: np.ndarray, label_at: int = 0) -> None:
     """A translucent wooden plane patch with a grid (so its tilt reads at a glance) and a
-    darker rim; a few short normals show the free side."""
+    darker rim, labelled near corner ``label_at``; a few short normals show the free side."""
     ax.add_collection3d(Poly3DCollection([corners], facecolors=[(*rgb(SCENE_COLOR), 0.22)],
                                          edgecolors=[(*rgb(SCENE_COLOR), 0.9)], linewidths=1.6, zorder=0))
     side = float(np.linalg.norm(corners[1] - corners[0]))
@@ -136,8 +149,7 @@ def draw_table(ax, corners: np.ndarray, plane: np.ndarray) -> None:
     for t in np.arange(step, side - 1e-6, step):
         for a, b in ((corners[0] + t * u, corners[3] + t * u), (corners[0] + t * v, corners[1] + t * v)):
             ax.plot(*np.stack([a, b]).T, color=SCENE_COLOR, linewidth=0.5, alpha=0.45, zorder=0)
-    n = np.asarray(plane[:3], float)
-    label = corners[0] + 0.06 * side * (u + v)
+    label = corners[label_at] + 0.12 * (corners.mean(axis=0) - corners[label_at])
     ax.text(*label, "table", color=SCENE_COLOR, fontsize=9, fontweight="bold", zorder=7)
 
 
