@@ -130,16 +130,19 @@ def label_corner(corners: np.ndarray, content: np.ndarray, direction: np.ndarray
     object's and the hand's points): the label covers neither the object nor the hand (a
     hand's forearm reaches out over one side of the table)."""
     d = np.asarray(direction, float) / np.linalg.norm(direction)
-    corners = np.asarray(corners, float)
-    places = corners + 0.12 * (corners.mean(axis=0) - corners)
-    gaps = places[:, None, :] - np.asarray(content, float)[None]   # (4, k, 3)
+    gaps = _label_places(np.asarray(corners, float))[:, None, :] - np.asarray(content, float)[None]   # (4, k, 3)
     gaps -= (gaps @ d)[..., None] * d                             # as the picture shows them
     return int(np.argmax(np.linalg.norm(gaps, axis=2).min(axis=1)))
 
 
+def _label_places(corners: np.ndarray) -> np.ndarray:
+    """(4, 3) mm: where the table's label may go, just inside each corner (corners (4, 3))."""
+    return corners + 0.12 * (corners.mean(axis=0) - corners)
+
+
 def draw_table(ax, corners: np.ndarray, plane: np.ndarray, label_at: int = 0) -> None:
     """A translucent wooden plane patch with a grid (so its tilt reads at a glance) and a
-    darker rim, labelled near corner ``label_at``; a few short normals show the free side."""
+    darker rim, labelled near corner ``label_at``."""
     ax.add_collection3d(Poly3DCollection([corners], facecolors=[(*rgb(SCENE_COLOR), 0.22)],
                                          edgecolors=[(*rgb(SCENE_COLOR), 0.9)], linewidths=1.6, zorder=0))
     side = float(np.linalg.norm(corners[1] - corners[0]))
@@ -149,8 +152,7 @@ def draw_table(ax, corners: np.ndarray, plane: np.ndarray, label_at: int = 0) ->
     for t in np.arange(step, side - 1e-6, step):
         for a, b in ((corners[0] + t * u, corners[3] + t * u), (corners[0] + t * v, corners[1] + t * v)):
             ax.plot(*np.stack([a, b]).T, color=SCENE_COLOR, linewidth=0.5, alpha=0.45, zorder=0)
-    label = corners[label_at] + 0.12 * (corners.mean(axis=0) - corners[label_at])
-    ax.text(*label, "table", color=SCENE_COLOR, fontsize=9, fontweight="bold", zorder=7)
+    ax.text(*_label_places(corners)[label_at], "table", color=SCENE_COLOR, fontsize=9, fontweight="bold", zorder=7)
 
 
 def obstacle_surfaces(obstacle, roi_lo: np.ndarray, roi_hi: np.ndarray) -> list[np.ndarray]:
