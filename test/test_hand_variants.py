@@ -58,6 +58,26 @@ def test_sensor_links_on_the_phalanges_are_no_fingers(allegro_file, tmp_path):
     np.testing.assert_allclose(sensed.palm_normal, plain.palm_normal, atol=1e-9)
 
 
+def test_a_tip_frame_marker_beyond_the_fingertip_leaves_the_fingertip_the_tip(allegro_file, tmp_path):
+    """A 1 x 2 x 1 mm box fixed 1 mm beyond each fingertip sphere (the Linker hands mark
+    their tip frames so): it reaches farther than the sphere but is no pad. The same tips,
+    pads and thumb as without the markers."""
+    text = allegro_file.read_text()
+    hand_file = load_hand(allegro_file, spheres=False)
+    markers = ""
+    for f in ("index", "middle", "ring", "thumb"):
+        radius = next(fi.pad_radius for fi in hand_file.fingers if fi.tip_link == f"{f}_tip")
+        markers += _sensor(f"{f}_tip_frame", f"{f}_tip", (0.0, 0.0, radius + 0.0015), (0.001, 0.002, 0.001))
+    path = tmp_path / "allegro_markers.urdf"
+    path.write_text(text.replace("</robot>", markers + "</robot>"))
+    marked = load_hand(path, spheres=False)
+    assert len(marked.links) == len(hand_file.links) + 4
+    assert [f.tip_link for f in marked.fingers] == [f.tip_link for f in hand_file.fingers]
+    assert [f.pad_link for f in marked.fingers] == [f.pad_link for f in hand_file.fingers]
+    np.testing.assert_allclose([f.pad_radius for f in marked.fingers], [f.pad_radius for f in hand_file.fingers])
+    assert [f.is_thumb for f in marked.fingers] == [f.is_thumb for f in hand_file.fingers]
+
+
 def test_a_leader_that_its_followers_limits_leave_no_range_is_held(tmp_path):
     """The coupled Allegro-like hand with the index distal joint (mimic of the middle one,
     multiplier 1) limited to [-1.709, -0.174]: the middle joint's own range [-0.174, 1.709]

@@ -40,6 +40,9 @@ _CLEAR_COS = 0.25
 #: A finger's joint ranges vote for a closing sense by how much further its flexion
 #: joints turn one way than the other (rad); within this they do not say.
 _WEAK_VOTE = 0.2
+#: A link of a fingertip's body whose collision geometry spans less than this share of the
+#: body's largest is a marker (a tip frame drawn as a small box or ball), never the tip.
+_MARKER_SHARE = 0.2
 
 
 def _children(raw: RawHand) -> dict[str | None, list[str]]:
@@ -114,7 +117,8 @@ def _tip_link(leaf: str, children, by_name) -> str | None:
     joint, the leaf included, and the links fixed below it): None when a movable joint
     lies below that link; else the body's link whose collision geometry reaches farthest
     from the moving link's origin (the leaf on a tie): a fingertip with a sensor pad fixed
-    inside it (dex-urdf's Allegro with FSRs) keeps the fingertip."""
+    inside it (dex-urdf's Allegro with FSRs) keeps the fingertip, and so does one with a
+    millimetre-sized marker fixed at its end (the Linker hands' tip frames)."""
     moving = leaf
     while not by_name[moving].joints and by_name[moving].parent is not None:
         moving = by_name[moving].parent
@@ -125,13 +129,24 @@ def _tip_link(leaf: str, children, by_name) -> str | None:
             return None
         body.append((name, pose))
         stack.extend((c, pose @ by_name[c].origin) for c in children.get(name, []))
-    best, far = leaf, -1.0
+    reach, size = {}, {}
     for name, pose in body:
-        for g in by_name[name].geoms:
-            v = g.to_trimesh().vertices @ pose[:3, :3].T + pose[:3, 3]
-            d = float(np.linalg.norm(v, axis=1).max())
-            if d > far + 1e-9 or (abs(d - far) <= 1e-9 and name == leaf):
-                best, far = name, d
+        points = [g.to_trimesh().vertices @ pose[:3, :3].T + pose[:3, 3] for g in by_name[name].geoms]
+        if points:
+            v = np.concatenate(points)
+            reach[name] = float(np.linalg.norm(v, axis=1).max())
+            size[name] = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    if not reach:
+        return leaf
+    # a frame marker (a millimetre-sized geom a file fixes at the fingertip to name its
+    # tip) reaches farthest but is no pad
+    largest = max(size.values())
+    best, far = leaf, -1.0
+    for name, d in reach.items():
+        if size[name] < _MARKER_SHARE * largest:
+            continue
+        if d > far + 1e-9 or (abs(d - far) <= 1e-9 and name == leaf):
+            best, far = name, d
     return best
 
 
