@@ -484,3 +484,50 @@ def test_a_urdf_with_collada_meshes_in_mm_loads_and_simulates(tmp_path):
     verts = m.mesh_vert[m.mesh_vertadr[d]:m.mesh_vertadr[d] + m.mesh_vertnum[d]]
     assert np.ptp(verts, axis=0).max() == pytest.approx(reference.extents.max(), rel=1e-3)
 
+
+
+def _three_finger_mjcf(fused: bool) -> str:
+    """Two fingers and a thumb on a box palm; with ``fused`` the palm's geom and the three
+    fingers sit directly under <worldbody> (beside a floor and a light), as MuJoCo writes a
+    URDF whose base link is fixed."""
+    def finger(name, x, y, axis):
+        return (f'<body name="{name}_proximal" pos="{x} {y} 0.01"><joint name="{name}_1" axis="{axis}" range="0 1.57"/>'
+                f'<geom type="capsule" size="0.008 0.015" pos="0 0 0.015"/>'
+                f'<body name="{name}_distal" pos="0 0 0.03"><joint name="{name}_2" axis="{axis}" range="0 1.57"/>'
+                f'<geom type="capsule" size="0.008 0.012" pos="0 0 0.012"/></body></body>')
+    fingers = (finger("index", 0.02, 0.02, "0 -1 0") + finger("middle", 0.02, -0.02, "0 -1 0")
+               + finger("thumb", -0.02, 0.0, "0 1 0"))
+    palm = '<geom name="palm" type="box" size="0.03 0.04 0.01"/>'
+    world = ('<geom name="floor" type="plane" size="1 1 0.1" pos="0 0 -0.5"/><light pos="0 0 2"/>'
+             + (palm + fingers if fused else f'<body name="palm">{palm}{fingers}</body>'))
+    return f'<mujoco model="claw"><worldbody>{world}</worldbody></mujoco>'
+
+
+def test_a_hand_whose_base_is_fused_into_the_world_is_the_same_hand(tmp_path):
+    """MuJoCo writes a URDF with a fixed base link as its palm's geoms and its fingers
+    directly under <worldbody>. Loaded, that hand is the one whose palm is a body: the same
+    fingers, joints, closing senses, thumb, palm normal and link poses, its root the base
+    lifted into a body; the simulation holds that root at the root pose, the floor left out."""
+    based, fused = tmp_path / "based.xml", tmp_path / "fused.xml"
+    based.write_text(_three_finger_mjcf(False))
+    fused.write_text(_three_finger_mjcf(True))
+    a, b = load_hand(based, spheres=False), load_hand(fused, spheres=False)
+    assert a.root_link == "palm" and b.root_link == "claw_base"
+    assert any("fused into the world body" in n and "claw_base" in n for n in b.notes), b.notes
+    assert b.actuated_joints == a.actuated_joints
+    assert [(f.tip_link, f.joints, f.closing, f.is_thumb) for f in b.fingers] == \
+        [(f.tip_link, f.joints, f.closing, f.is_thumb) for f in a.fingers]
+    assert sum(f.is_thumb for f in b.fingers) == 1
+    np.testing.assert_allclose(b.palm_normal, a.palm_normal, atol=1e-9)
+    q = np.random.default_rng(0).uniform(a.lower, a.upper)
+    pa, pb = a.link_transforms(q), b.link_transforms(q)
+    for link in pa:
+        np.testing.assert_allclose(pb["claw_base" if link == "palm" else link], pa[link], atol=1e-12)
+    sc, _ = prepare_any_hand(b, _ball(0.02), FAR, ROOT, b.open_configuration())
+    m, d = sc.model, sc.data
+    np.testing.assert_allclose(d.xpos[sc.root_body], ROOT[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(d.xmat[sc.root_body].reshape(3, 3), ROOT[:3, :3], atol=1e-9)
+    palm = m.geom("palm").id
+    assert m.geom_bodyid[palm] == sc.root_body
+    np.testing.assert_allclose(d.geom_xpos[palm], ROOT[:3, 3], atol=1e-9)
+    assert "floor" not in {m.geom(i).name for i in range(m.ngeom)}

@@ -5,7 +5,8 @@ mesh directories resolved; meshes as MuJoCo places them).
   motions in order (``qpos0`` is the reference of each). The hand is the world body's
   child subtree with the most hinge and slide joints; other subtrees (tables, objects,
   mocap bodies) are ignored, with a note. A free joint at the top of the hand is
-  ignored (the root pose is the planner's); a ball joint is refused.
+  ignored (the root pose is the planner's); a ball joint is refused. A base fused into the
+  world body (as MuJoCo writes a URDF's fixed base link) is lifted into a body first.
 - Collision geometry: geoms that collide (``contype`` or ``conaffinity`` non-zero);
   planes and height fields are not hand geometry. Ellipsoids become meshes.
 - Couplings: joint equalities (``polycoef``: the linear part; higher terms noted) and
@@ -79,7 +80,80 @@ def open_spec(path: Path, notes: list[str], max_mesh_bytes: int | None = None):
             spec.delete(g)
         spec.delete(mesh)
         notes.append(f"mesh {mesh.name}: file {file.name} missing, visual only: ignored")
-    return spec
+    return _lift_fused_base(spec, path, notes)
+
+
+def _moving_tops(spec) -> list:
+    """The world's child bodies whose subtrees hold hinge or slide joints, no free joint."""
+    import mujoco
+
+    tops = []
+    for body in spec.worldbody.bodies:
+        kinds = [j.type for j in body.find_all(mujoco.mjtObj.mjOBJ_JOINT)] + [j.type for j in body.joints]
+        if kinds and mujoco.mjtJoint.mjJNT_FREE not in kinds:
+            tops.append(body)
+    return tops
+
+
+def _lift_fused_base(spec, path: Path, notes: list[str]):
+    """A hand whose base is fused into the world body -- its palm geoms directly in
+    ``<worldbody>`` and its fingers world bodies of their own, as MuJoCo writes a URDF with
+    a fixed base link -- gets that base back as a body (``<model>_base`` at the world's
+    origin) holding those geoms and fingers, so that it can be found, held and placed as
+    any hand's root. Planes, lights, cameras, free bodies and bodies without joints stay
+    in the world."""
+    import xml.etree.ElementTree as ET
+
+    import mujoco
+
+    solid = [g for g in spec.worldbody.geoms if g.type not in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
+             and (g.contype or g.conaffinity)]
+    tops = _moving_tops(spec)
+    if not solid or len(tops) < 2:
+        return spec
+    moving = {b.name for b in tops}
+    keep_geoms = [g.type in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD) for g in spec.worldbody.geoms]
+    names = {b.name for b in spec.bodies}
+    base_name = next(n for n in (f"{spec.modelname or path.stem}_base", "hand_base", *(f"hand_base{i}" for i in range(1000)))
+                     if n not in names)
+    try:
+        root = ET.fromstring(spec.to_xml())
+    except Exception as exc:
+        raise HandDescriptionError(f"hand_description: {path.name}: the hand's base is fused into the world body and "
+                                   f"MuJoCo cannot write the file back to lift it ({str(exc).splitlines()[0][:200]})",
+                                   field="hand_description") from None
+    world = root.find("worldbody")
+    base = ET.Element("body", {"name": base_name})
+    geom_index = 0
+    for element in list(world):
+        if element.tag == "geom":
+            stays = keep_geoms[geom_index]
+            geom_index += 1
+            if stays:
+                continue
+        elif not (element.tag == "body" and element.get("name") in moving):
+            continue
+        world.remove(element)
+        base.append(element)
+    world.append(base)
+    # the XML is parsed without the file's folder: asset paths made absolute
+    folder = Path(spec.modelfiledir or path.parent)
+    compiler = root.find("compiler")
+    if compiler is None:
+        compiler = ET.SubElement(root, "compiler")
+    for key, value in (("meshdir", spec.meshdir), ("texturedir", spec.texturedir)):
+        compiler.set(key, str(folder / (value or "")))
+    compiler.set("assetdir", str(folder))
+    try:
+        lifted = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
+    except Exception as exc:
+        raise HandDescriptionError(f"hand_description: {path.name}: the hand's base is fused into the world body and "
+                                   f"could not be lifted into a body ({str(exc).splitlines()[0][:200]})",
+                                   field="hand_description") from None
+    notes.append(f"the hand's base is fused into the world body (its geoms and {len(tops)} jointed bodies directly "
+                 f"under <worldbody>, as MuJoCo writes a URDF's fixed base): taken as the root body {base_name!r} "
+                 "at the world's origin")
+    return lifted
 
 
 def _compile(path: Path, notes: list[str], max_mesh_bytes: int):
