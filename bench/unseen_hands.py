@@ -29,7 +29,8 @@ link at the candidate's ``wrist_pose``:
     python-fcl distance from the link's collision elements to the object's mesh within 2 mm
     (0 when they collide; (d) bounds how deep);
 (d) ``depth``: no link penetrates the object by more than 1 mm (python-fcl collide, the
-    depth then measured from surface samples with trimesh's signed distance both ways).
+    depth then measured from surface samples with trimesh's signed distance both ways; the
+    object's points inside a link only where the link's mesh is wound consistently).
 
 Also reported, not checks: ``pad_sph``, candidates whose pad spheres (radius
 ``Finger.pad_radius`` through the pad point ``Finger.pad_center``, placed by yourdfpy,
@@ -203,9 +204,14 @@ def table_object(plane: np.ndarray) -> fcl.CollisionObject:
 
 
 def penetration(link_mesh: trimesh.Trimesh, obj_mesh: trimesh.Trimesh, rng: np.random.Generator) -> float:
-    """Deepest point of either mesh inside the other (m, >= 0), from vertices and surface samples."""
+    """Deepest point of either mesh inside the other (m, >= 0), from vertices and surface
+    samples. The object's points are read inside the link only when the link's mesh is wound
+    consistently: trimesh signs a distance by the nearest face's normal, and where a mesh's
+    faces turn every which way (the Linker L21's finger and thumb meshes) that sign says
+    nothing (a mesh with a few holes but consistent winding, as some of dex-urdf's, is read)."""
     depth = 0.0
-    for a, b in ((link_mesh, obj_mesh), (obj_mesh, link_mesh)):
+    pairs = [(link_mesh, obj_mesh)] + ([(obj_mesh, link_mesh)] if link_mesh.is_winding_consistent else [])
+    for a, b in pairs:
         pts = np.vstack([a.vertices, a.sample(400, seed=int(rng.integers(1 << 31)))])
         near = b.bounds[0] - 0.002 <= pts
         near &= pts <= b.bounds[1] + 0.002
