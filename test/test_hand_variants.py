@@ -78,6 +78,28 @@ def test_a_tip_frame_marker_beyond_the_fingertip_leaves_the_fingertip_the_tip(al
     assert [f.is_thumb for f in marked.fingers] == [f.is_thumb for f in hand_file.fingers]
 
 
+def test_a_fingertip_with_only_a_marker_for_geometry_is_noted(allegro_file, tmp_path):
+    """The index finger's distal link and tip written without collision geometry and a
+    1 x 2 x 1 mm marker fixed at the tip: the marker is all there is, so it is the index
+    finger's tip, and a note names it and says how to give the fingertip."""
+    import re
+
+    text = allegro_file.read_text()
+    for link in ("index_distal", "index_tip"):
+        text = re.sub(rf'(<link name="{link}">)(.*?)(</link>)',
+                      lambda m: m.group(1) + re.sub(r"<collision>.*?</collision>", "", m.group(2), flags=re.S)
+                      + m.group(3), text, flags=re.S)
+    text = text.replace("</robot>", _sensor("index_tip_frame", "index_tip", (0.0, 0.0, 0.0), (0.001, 0.002, 0.001))
+                        + "</robot>")
+    path = tmp_path / "allegro_bare_index.urdf"
+    path.write_text(text)
+    hand = load_hand(path, spheres=False)
+    index = next(f for f in hand.fingers if f.tip_link == "index_tip_frame")
+    notes = [n for n in hand.notes if n.startswith(f"finger {index.name}:")]
+    assert len(notes) == 1 and "index_tip_frame" in notes[0] and "hand_config.fingers" in notes[0], hand.notes
+    assert not any("frame marker or a sensor" in n for n in load_hand(allegro_file, spheres=False).notes)
+
+
 def test_a_leader_that_its_followers_limits_leave_no_range_is_held(tmp_path):
     """The coupled Allegro-like hand with the index distal joint (mimic of the middle one,
     multiplier 1) limited to [-1.709, -0.174]: the middle joint's own range [-0.174, 1.709]

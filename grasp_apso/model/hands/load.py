@@ -38,6 +38,9 @@ def _hand_bytes(hand: HandModel) -> int:
 
 #: Seed of the sphere covers (deterministic per hand).
 _SEED = 20
+#: A fingertip link with less collision geometry than this (m, bounding-box diagonal) is
+#: noted: no real fingertip is that small, a frame marker or a sensor is.
+_SMALL_TIP = 0.008
 
 
 def _read(path: Path, limit: int) -> bytes:
@@ -176,7 +179,19 @@ def _derived(raw: RawHand, cfg: HandConfig, source_hash: str) -> tuple[HandModel
                                        field="hand_config.closing")
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
     fingers = tuple(_finger(bare, label, sem, cfg, normal) for label, sem in zip(labels, semantics))
+    for finger in fingers:
+        span = _span(bare.collision[finger.tip_link])
+        if span < _SMALL_TIP:
+            notes.append(f"finger {finger.name}: its tip link {finger.tip_link} has only {1000 * span:.1f} mm of "
+                         "collision geometry (a frame marker or a sensor, the fingertip's own geometry missing?): "
+                         "give the fingertip link in hand_config.fingers if this is not it")
     return replace(bare, notes=tuple(notes)), fingers, normal
+
+
+def _span(geoms) -> float:
+    """The diagonal of the bounding box of a link's collision geometry (m)."""
+    corners = np.concatenate([g.bounds for g in geoms])
+    return float(np.linalg.norm(np.ptp(corners, axis=0)))
 
 
 def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[str]]:
