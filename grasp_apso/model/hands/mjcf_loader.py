@@ -111,7 +111,8 @@ def _lift_fused_base(spec, path: Path, notes: list[str]):
     tops = _moving_tops(spec)
     if not solid or len(tops) < 2:
         return spec
-    moving = {b.name for b in tops}
+    # the XML's world children come in the spec's order: geoms and bodies matched by index
+    moves_body = [any(b is t for t in tops) for b in spec.worldbody.bodies]
     keep_geoms = [g.type in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD) for g in spec.worldbody.geoms]
     names = {b.name for b in spec.bodies}
     base_name = next(n for n in (f"{spec.modelname or path.stem}_base", "hand_base", *(f"hand_base{i}" for i in range(1000)))
@@ -123,15 +124,18 @@ def _lift_fused_base(spec, path: Path, notes: list[str]):
                                    f"MuJoCo cannot write the file back to lift it ({str(exc).splitlines()[0][:200]})",
                                    field="hand_description") from None
     world = root.find("worldbody")
+    children = list(world)
+    if [e.tag for e in children].count("geom") != len(keep_geoms) or \
+            [e.tag for e in children].count("body") != len(moves_body):
+        return spec  # world geoms or bodies inside <frame>s: left as the file has them
     base = ET.Element("body", {"name": base_name})
-    geom_index = 0
-    for element in list(world):
-        if element.tag == "geom":
-            stays = keep_geoms[geom_index]
-            geom_index += 1
-            if stays:
-                continue
-        elif not (element.tag == "body" and element.get("name") in moving):
+    index = {"geom": 0, "body": 0}
+    for element in children:
+        if element.tag not in index:
+            continue
+        k = index[element.tag]
+        index[element.tag] += 1
+        if (keep_geoms[k] if element.tag == "geom" else not moves_body[k]):
             continue
         world.remove(element)
         base.append(element)
