@@ -190,8 +190,15 @@ def test_a_missing_collision_mesh_is_named_and_missing_visual_meshes_are_ignored
     # The generated URDF's visual meshes (.dae) do not exist: it loads.
     assert not list(allegro_file.parent.rglob("*.dae"))
     edited = _edit(allegro_file, tmp_path, "meshes/ring_distal_0.stl", "meshes/gone.stl")
-    with pytest.raises(HandDescriptionError, match="link ring_distal.*gone.stl not found"):
+    with pytest.raises(HandDescriptionError, match="link ring_distal.*gone.stl not found") as info:
         load_hand(edited, spheres=False)
+    assert "a file of that name" not in str(info.value)
+    # An exporter's absolute path at the file system's root (the Linker L20's URDF): the
+    # error names the file of that name in the description's meshes/ folder, and loads nothing.
+    rooted = _edit(allegro_file, tmp_path, "package://allegro_like/meshes/ring_distal_0.stl", "/ring_distal_0.stl")
+    with pytest.raises(HandDescriptionError, match=r"/ring_distal_0.stl not found \(a file of that name is at "
+                                                   r".*meshes/ring_distal_0.stl: is the URDF's path wrong\?\)"):
+        load_hand(rooted, spheres=False)
 
 
 def test_a_git_lfs_pointer_instead_of_a_mesh_is_named(allegro_file, tmp_path):

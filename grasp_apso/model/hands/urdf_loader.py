@@ -57,6 +57,15 @@ def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
     return path if path.is_absolute() else base_dir / path
 
 
+def _refuse_missing_mesh(path: Path, base_dir: Path, where: str) -> None:
+    """The error for a collision mesh file that is not there, naming a file of the same name
+    beside the description or in its ``meshes/`` folder when there is one (an exporter
+    that wrote ``filename="/base_link.STL"``): told, not taken, as RViz would not take it."""
+    near = [c for c in (base_dir / path.name, base_dir / "meshes" / path.name) if c.is_file()]
+    hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
+    raise HandDescriptionError(f"{where}: collision mesh file {path} not found{hint}", field=where)
+
+
 def read_collision_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
     """A URDF collision mesh file in metres, the URDF's own ``scale`` not applied (the
     simulation reads the meshes MuJoCo cannot decode with it too)."""
@@ -100,6 +109,8 @@ def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeom
         return LinkGeometry("capsule", (capsule.radius, capsule.length / 2.0), origin, None, where)
     if geom.mesh is not None:
         path = resolve_mesh_path(geom.mesh.filename, base_dir)
+        if not path.is_file():
+            _refuse_missing_mesh(path, base_dir, where)
         mesh = read_collision_mesh(path, where, max_bytes).copy()
         scale = geom.mesh.scale
         if scale is not None:
