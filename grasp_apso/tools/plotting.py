@@ -224,7 +224,7 @@ def _draw_panel(ax, view: str, grasp: _Grasp, tris: np.ndarray, com: np.ndarray,
     if scene is not None:
         for plane in scene.planes:
             corners = table_patch(np.asarray(plane), content)
-            draw_table(ax, corners, np.asarray(plane), label_corner(corners, content, direction))
+            draw_table(ax, corners, label_corner(corners, content, direction))
             pts.append(corners)
         pts.append(draw_obstacles(ax, scene, roi_lo, roi_hi))
     draw_object(ax, tris, com, grasp.palm_axes @ np.array([0.3, 0.5, 1.0]))

@@ -140,7 +140,7 @@ def _label_places(corners: np.ndarray) -> np.ndarray:
     return corners + 0.12 * (corners.mean(axis=0) - corners)
 
 
-def draw_table(ax, corners: np.ndarray, plane: np.ndarray, label_at: int = 0) -> None:
+def draw_table(ax, corners: np.ndarray, label_at: int = 0) -> None:
     """A translucent wooden plane patch with a grid (so its tilt reads at a glance) and a
     darker rim, labelled near corner ``label_at``."""
     ax.add_collection3d(Poly3DCollection([corners], facecolors=[(*rgb(SCENE_COLOR), 0.22)],

@@ -89,7 +89,7 @@ def _moving_tops(spec) -> list:
 
     tops = []
     for body in spec.worldbody.bodies:
-        kinds = [j.type for j in body.find_all(mujoco.mjtObj.mjOBJ_JOINT)] + [j.type for j in body.joints]
+        kinds = [j.type for j in body.find_all(mujoco.mjtObj.mjOBJ_JOINT)]  # its own joints included
         if kinds and mujoco.mjtJoint.mjJNT_FREE not in kinds:
             tops.append(body)
     return tops
@@ -106,14 +106,14 @@ def _lift_fused_base(spec, path: Path, notes: list[str]):
 
     import mujoco
 
-    solid = [g for g in spec.worldbody.geoms if g.type not in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
-             and (g.contype or g.conaffinity)]
+    flat = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)  # the scene's, never the hand's
+    keep_geoms = [g.type in flat for g in spec.worldbody.geoms]
     tops = _moving_tops(spec)
-    if not solid or len(tops) < 2:
+    if not any(not keep and (g.contype or g.conaffinity) for keep, g in zip(keep_geoms, spec.worldbody.geoms)) \
+            or len(tops) < 2:
         return spec
     # the XML's world children come in the spec's order: geoms and bodies matched by index
     moves_body = [any(b is t for t in tops) for b in spec.worldbody.bodies]
-    keep_geoms = [g.type in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD) for g in spec.worldbody.geoms]
     names = {b.name for b in spec.bodies}
     base_name = next(n for n in (f"{spec.modelname or path.stem}_base", "hand_base", *(f"hand_base{i}" for i in range(1000)))
                      if n not in names)

@@ -57,20 +57,16 @@ def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
     return path if path.is_absolute() else base_dir / path
 
 
-def _refuse_missing_mesh(path: Path, base_dir: Path, where: str) -> None:
-    """The error for a collision mesh file that is not there, naming a file of the same name
-    beside the description or in its ``meshes/`` folder when there is one (an exporter
-    that wrote ``filename="/base_link.STL"``): told, not taken, as RViz would not take it."""
-    near = [c for c in (base_dir / path.name, base_dir / "meshes" / path.name) if c.is_file()]
-    hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
-    raise HandDescriptionError(f"{where}: collision mesh file {path} not found{hint}", field=where)
-
-
-def read_collision_mesh(path: Path, where: str, max_bytes: int) -> trimesh.Trimesh:
+def read_collision_mesh(path: Path, where: str, max_bytes: int, base_dir: Path | None = None) -> trimesh.Trimesh:
     """A URDF collision mesh file in metres, the URDF's own ``scale`` not applied (the
-    simulation reads the meshes MuJoCo cannot decode with it too)."""
+    simulation reads the meshes MuJoCo cannot decode with it too). A file that is not there
+    is an error; with ``base_dir`` (the description's folder) it names a file of the same
+    name beside the description or in its ``meshes/`` folder (an exporter that wrote
+    ``filename="/base_link.STL"``): told, not taken, as RViz would not take it."""
     if not path.is_file():
-        raise HandDescriptionError(f"{where}: collision mesh file {path} not found", field=where)
+        near = [c for c in (base_dir / path.name, base_dir / "meshes" / path.name) if c.is_file()] if base_dir else []
+        hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
+        raise HandDescriptionError(f"{where}: collision mesh file {path} not found{hint}", field=where)
     if path.stat().st_size > max_bytes:
         raise HandDescriptionError(f"{where}: collision mesh {path.name} is over the size limit "
                                    f"({path.stat().st_size} > {max_bytes} bytes)", field=where)
@@ -109,9 +105,7 @@ def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeom
         return LinkGeometry("capsule", (capsule.radius, capsule.length / 2.0), origin, None, where)
     if geom.mesh is not None:
         path = resolve_mesh_path(geom.mesh.filename, base_dir)
-        if not path.is_file():
-            _refuse_missing_mesh(path, base_dir, where)
-        mesh = read_collision_mesh(path, where, max_bytes).copy()
+        mesh = read_collision_mesh(path, where, max_bytes, base_dir).copy()
         scale = geom.mesh.scale
         if scale is not None:
             mesh.apply_scale(np.broadcast_to(np.asarray(scale, float), (3,)))
