@@ -156,13 +156,16 @@ _CLAW_LENGTHS = (0.07, 0.06)
 _CLAW_TIP = 0.011
 
 
-def _write_claw(folder: Path) -> Path:
-    """Three fingers at 120 degrees around the palm normal (+z), each a base joint turning
-    it sideways and two flexion joints of range [-1.57, 1.57] (the ranges do not say
-    which way closes), straight along +z at zero; the second finger's flexion axes point
-    the other way (as the D'Claw's do), so the same joint sign closes one finger and
-    opens another."""
-    lines = ['<?xml version="1.0"?>', '<robot name="claw">',
+def _write_claw(folder: Path, radius: float = _CLAW_RADIUS, tip_box: tuple | None = None,
+                name: str = "claw") -> Path:
+    """Three fingers at 120 degrees around the palm normal (+z), ``radius`` from it, each a
+    base joint turning it sideways and two flexion joints of range [-1.57, 1.57] (the
+    ranges do not say which way closes), straight along +z at zero; the second finger's
+    flexion axes point the other way (as the D'Claw's do), so the same joint sign closes
+    one finger and opens another. The tips are spheres, or with ``tip_box`` (width along
+    the flexion axis, thickness, length; m) flat boxes as a gripper's (a Robotiq or
+    Schunk SDH fingertip)."""
+    lines = ['<?xml version="1.0"?>', f'<robot name="{name}">',
              '  <link name="base"><collision><origin xyz="0 0 -0.01" rpy="0 0 0"/><geometry>'
              '<cylinder radius="0.07" length="0.02"/></geometry></collision></link>']
     for f in range(3):
@@ -170,7 +173,7 @@ def _write_claw(folder: Path) -> Path:
         radial = np.array([math.cos(angle), math.sin(angle), 0.0])
         tangent = np.cross([0.0, 0.0, 1.0], radial)
         sign = -1.0 if f == 1 else 1.0
-        parent, xyz = "base", _CLAW_RADIUS * radial
+        parent, xyz = "base", radius * radial
         for k, length in enumerate((0.02, *_CLAW_LENGTHS)):
             name = f"f{f}_link{k}"
             axis = radial if k == 0 else sign * tangent
@@ -184,10 +187,16 @@ def _write_claw(folder: Path) -> Path:
             parent, xyz = name, (0.0, 0.0, length)
         lines.append(f'  <joint name="f{f}_tip_joint" type="fixed"><origin xyz="0 0 {_CLAW_LENGTHS[-1]:.9g}" '
                      f'rpy="0 0 0"/><parent link="{parent}"/><child link="f{f}_tip"/></joint>')
-        lines.append(f'  <link name="f{f}_tip"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry>'
-                     f'<sphere radius="{_CLAW_TIP}"/></geometry></collision></link>')
+        if tip_box is None:
+            tip = f'<origin xyz="0 0 0" rpy="0 0 0"/><geometry><sphere radius="{_CLAW_TIP}"/></geometry>'
+        else:  # the box's width along the flexion axis (link frame: the tangent turned onto x)
+            width, thick, length = tip_box
+            yaw = math.atan2(tangent[1], tangent[0])
+            tip = (f'<origin xyz="0 0 {length / 2:.9g}" rpy="0 0 {yaw:.9g}"/><geometry><box size="{width:.9g} '
+                   f'{thick:.9g} {length:.9g}"/></geometry>')
+        lines.append(f'  <link name="f{f}_tip"><collision>{tip}</collision></link>')
     lines.append("</robot>")
-    path = folder / "claw.urdf"
+    path = folder / f"{name}.urdf"
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -265,3 +274,45 @@ def test_a_claw_plans_grasps_clear_of_the_table(claw_file):
         cfg = {j: float(v) for j, v in zip(hand.actuated_joints, cand.joint_positions)}
         urdf.update_cfg(cfg)
         assert _table_distance(urdf, np.asarray(cand.wrist_pose), table_z) >= options.clearance - 5e-4
+
+
+def test_a_flat_fingertip_has_its_pad_in_the_middle_of_its_width(tmp_path):
+    """Box fingertips 30 mm wide along the flexion axis: the pad sits in the middle of the
+    width (the farthest point of such a tip is a corner; the probe once put the pad there,
+    12 mm off), on every finger, also the one whose flexion axes point the other way."""
+    hand = load_hand(_write_claw(tmp_path, tip_box=(0.03, 0.01, 0.025), name="flat"), spheres=False)
+    assert len(hand.fingers) == 3
+    for f, finger in enumerate(hand.fingers):
+        angle = 2.0 * math.pi * int(finger.tip_link[1]) / 3.0
+        tangent = np.array([-math.sin(angle), math.cos(angle), 0.0])  # the flexion axis (link frame at zero)
+        assert abs(float(np.asarray(finger.pad_center) @ tangent)) < 0.002, (finger.name, finger.pad_center)
+        assert float(np.asarray(finger.pad_center)[2]) > 0.01  # toward the tip's far end
+
+
+def test_a_gripper_opens_its_fingers_past_straight_to_take_a_wide_object(tmp_path):
+    """A claw whose straight fingers stand 35 mm apart (20 mm from its axis, as a Schunk
+    SDH's stand 6 cm apart) and bend back as far as they close: the 70 mm cube on a table
+    fits between them only with the fingers opened past straight. GRG draws a claw's
+    closing joints from half their opening on; the plans take the cube with force closure,
+    two or more contacts, the claw clear of the table (yourdfpy, python-fcl on the URDF's
+    own geometry). Drawn from straight on, no draw made two legal contacts."""
+    path = _write_claw(tmp_path, radius=0.02, name="gripper")
+    hand = load_hand(path)
+    cube = builtin("cube")
+    table = Scene.table_under(np.asarray(cube.mesh.vertices))
+    options = PlanOptions(particles=30, iterations=20, max_grasps=3)
+    result = plan(cube, options=options, rng=np.random.default_rng(0), hand=hand, scene=table)
+    assert result.candidates and result.candidates[0].force_closure
+    urdf = yourdfpy.URDF.load(str(path), build_collision_scene_graph=False, load_meshes=False)
+    table_z = float(np.asarray(cube.mesh.vertices)[:, 2].min())
+    for cand in result.candidates:
+        assert len(cand.contacts) >= 2
+        q = np.asarray(cand.joint_positions)
+        assert np.all(q >= hand.lower - 1e-9) and np.all(q <= hand.upper + 1e-9)
+        urdf.update_cfg({j: float(v) for j, v in zip(hand.actuated_joints, q)})
+        assert _table_distance(urdf, np.asarray(cand.wrist_pose), table_z) >= options.clearance - 5e-4
+    # the best grasp's pre-grasp bends a finger back past straight (against its closing sense)
+    pre = np.asarray(result.candidates[0].pre_grasp_positions)
+    past = [sense * pre[hand.actuated_joints.index(joint)] for f in hand.fingers
+            for joint, sense in zip(f.joints, f.closing) if sense]
+    assert min(past) < -0.1, past

@@ -3,7 +3,8 @@
 Wrist orientations from the shape class (:meth:`grasp_apso.search.grg.ShapeClass.sample_wrists`,
 which also turns them to the free side of support planes), standoffs in the hand's range
 (biased toward the palm), pre-shapes within the joint limits: each closing joint in the
-open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense),
+open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense; a
+claw's from past its open posture where it can bend back, :data:`CLAW_OPEN_PAST`),
 the thumb's pre-shape joints anywhere in their range (also those that move another finger
 too), the other fingers' abduction near its open value. A particle is kept
 when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
@@ -56,6 +57,11 @@ OPEN_FRACTION = 0.5
 #: at the palm. Measured on dex-urdf's D'Claw, 600 draws on the sphere, cube, barrel and mug:
 #: valid after GRG's regeneration 1-4 % of draws at 0.5, 6-13 % at 0.1.
 CLAW_OPEN_FRACTION = 0.1
+#: ... and a claw's closing joints that can open past the open posture (each finger of a
+#: Schunk SDH bends back 90 degrees, a D'Claw's too) are drawn from this share of that
+#: opening on: straight, a gripper's fingers stand too close together to take most objects
+#: between them (the SDH's 6 cm apart: no grasp of a 7 cm cube).
+CLAW_OPEN_PAST = 0.5
 #: Pre-shape joints of the fingers other than the thumb: within this fraction of their
 #: range either side of the open value (the thumb's: anywhere, for opposition).
 SPREAD_FRACTION = 0.15
@@ -77,8 +83,9 @@ POOL_BATCH = 64
 
 def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     """The pre-shape's per-joint draws of a hand, in :func:`_preshape`'s order: (spread rows,
-    their joints, their half widths; closing rows, their joints, their closing limits). Rows
-    index the draws."""
+    their joints, their half widths; closing rows, their joints, their closing limits, how
+    far past the open posture each is drawn from (rad, signed; 0 but for a claw's joints
+    that open past it: :data:`CLAW_OPEN_PAST`)). Rows index the draws."""
     t = tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
     # The thumb's pre-shape joints are drawn anywhere, also where they move another finger
@@ -87,7 +94,7 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
     # seldom oppose the fingers.
     thumb_joints = {int(t.j_index[f, k]) for f in range(t.n_fingers) if thumbs[f]
                     for k in range(int(t.j_count[f])) if np.isnan(t.j_target[f, k])}
-    spread, spread_j, half, closing, closing_j, target = [], [], [], [], [], []
+    spread, spread_j, half, closing, closing_j, target, past = [], [], [], [], [], [], []
     row = 0
     for f in range(t.n_fingers):
         for k in range(int(t.j_count[f])):
@@ -102,10 +109,12 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
             closing.append(row)
             closing_j.append(j)
             target.append(float(t.j_target[f, k]))
+            opposite = lo[j] if target[-1] > t.open_q[j] else hi[j]
+            past.append(CLAW_OPEN_PAST * (opposite - t.open_q[j]) if t.closes_ahead else 0.0)
             row += 1
     ints = (lambda v: np.array(v, dtype=np.int64))
     return (ints(spread), ints(spread_j), np.array(half, dtype=float), ints(closing), ints(closing_j),
-            np.array(target, dtype=float))
+            np.array(target, dtype=float), np.array(past, dtype=float))
 
 
 def _owned(tables) -> np.ndarray | None:
@@ -135,7 +144,7 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
     t = model.tables
     lo, hi = t.lower[t.layout.joints], t.upper[t.layout.joints]
     q = rng.uniform(lo, hi, (n, len(lo)))
-    spread, spread_j, half, closing, closing_j, target = _layout(model)[0]
+    spread, spread_j, half, closing, closing_j, target, past = _layout(model)[0]
     u = rng.random((len(spread) + len(closing), n))
     if len(spread):
         offset = (-half)[:, None] + (half - (-half))[:, None] * u[spread]
@@ -143,6 +152,11 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
     if len(closing):
         start = t.open_q[closing_j][:, None]
         q[:, closing_j] = (start + (fraction * u[closing]) * (target[:, None] - start)).T
+        wide = np.flatnonzero(past)
+        if len(wide):  # a claw's joints that open past the open posture: from there on
+            first = start[wide] + past[wide, None]
+            end = start[wide] + fraction * (target[wide, None] - start[wide])
+            q[:, closing_j[wide]] = (first + u[closing[wide]] * (end - first)).T
     return q
 
 

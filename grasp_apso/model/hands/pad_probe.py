@@ -6,8 +6,9 @@ that is long, angled or flat (a Barrett or LEAP fingertip, a coupled two-joint t
 part that meets an object first when the finger closes can lie a centimetre away, and a
 precision grasp then never touches at its pad. :func:`probe_pad` finds it by closing the
 finger: spheres of a few sizes (:data:`PROBE_RADII`) are put in the way of the tip link's
-far end at points along its closing path (ahead along its motion, also tilted toward and
-away from the palm normal); the finger closes (its closing joints from the open posture to
+far end (:func:`_far_end`: the middle of a wide tip, not its corner) at points along its
+closing path (ahead along its motion, also tilted toward and away from the palm normal);
+the finger closes (its closing joints from the open posture to
 their closing limits, couplings applied, the other fingers open) until one of its links
 enters the sphere. When the tip link is the first link touched for most probes, the pad is
 the point of its surface nearest the mean of its first-touch points.
@@ -40,6 +41,15 @@ MIN_SHARE = 0.5
 MIN_HITS = 6
 #: Probes per block of the distance computation (bounds its memory to a few MB).
 CHUNK = 32
+#: The far end's path is planar when its least spread across is under this share of its
+#: largest (:func:`_far_end`).
+PLANAR = 0.05
+#: A far end this far (m) across the finger from the middle of its width is a corner of
+#: a wide tip, not where its pad is (a human fingertip is about 16 mm wide): the probes go
+#: in the way of the middle instead. Nearer, the far end stays: of 31 hands measured (the
+#: test hands, the published hands of docs/hands.md) only those two grippers' tips and the
+#: thumb of dex-urdf's Allegro with tactile pads lie farther off (the others within 9 mm).
+OFF_MIDDLE = 0.01
 
 
 def _outer_samples(geoms, rng: np.random.Generator) -> np.ndarray:
@@ -62,6 +72,27 @@ def _closing_path(hand, joints, closing) -> np.ndarray:
     return path
 
 
+def _far_end(surface: np.ndarray, tip: np.ndarray) -> np.ndarray:
+    """The far end (3,) of a tip link, link frame: its surface sample farthest from the
+    link's origin; when that lies more than :data:`OFF_MIDDLE` across the finger from the
+    middle of the link's width, moved to the middle. Across: the normal of the plane the
+    closing moves it in (the joints' axes parallel; else the sample stays). On a wide, flat
+    fingertip the farthest sample is a corner, and the probes in its way put the pad at
+    that corner: 11 mm off the middle of the Robotiq three-finger gripper's 31 mm tips,
+    10 mm on the Schunk SDH's, where a mirrored finger's pad then faces out of the grasp.
+    ``surface`` (K, 3) link frame; ``tip`` (S, 4, 4) the link's poses along the closing
+    (root frame)."""
+    far = surface[np.argmax(np.linalg.norm(surface, axis=1))]
+    path = np.einsum("sij,j->si", tip[:, :3, :3], far) + tip[:, :3, 3]
+    _, spread, axes = np.linalg.svd(path - path.mean(axis=0), full_matrices=False)
+    if spread[0] < 1e-6 or spread[2] > PLANAR * spread[0]:  # no motion, or not in a plane
+        return far
+    across = tip[0, :3, :3].T @ axes[2]  # the plane's normal in the link frame
+    width = surface @ across
+    off = 0.5 * (width.max() + width.min()) - far @ across
+    return far + off * across if abs(off) > OFF_MIDDLE else far
+
+
 def probe_pad(hand, tip_link: str, joints, closing, palm_normal) -> np.ndarray | None:
     """The pad centre (3,) on ``tip_link``'s surface, link frame, m; None when closing does
     not tell (the tip link rarely touches first, or the finger does not move).
@@ -80,7 +111,7 @@ def probe_pad(hand, tip_link: str, joints, closing, palm_normal) -> np.ndarray |
     world = {l: np.einsum("sij,kj->ski", poses[:, hand.link_index(l), :3, :3], samples[l])
              + poses[:, hand.link_index(l), None, :3, 3] for l in links}  # (S, K, 3)
     tip = poses[:, hand.link_index(tip_link)]
-    far = samples[tip_link][np.argmax(np.linalg.norm(samples[tip_link], axis=1))]
+    far = _far_end(samples[tip_link], tip)
     far_path = np.einsum("sij,j->si", tip[:, :3, :3], far) + tip[:, :3, 3]  # (S, 3)
     normal = np.asarray(palm_normal, float) / np.linalg.norm(palm_normal)
     centers, radii = [], []
