@@ -257,23 +257,32 @@ def _table_distance(urdf: yourdfpy.URDF, wrist: np.ndarray, table_z: float) -> f
     return least
 
 
-def test_a_claw_plans_grasps_clear_of_the_table(claw_file):
-    """The claw plans the built-in sphere resting on a table: grasps with force closure, two
-    or more contacts, and the whole claw (the URDF's own geometry, yourdfpy's kinematics,
-    python-fcl) at least the clearance above the table."""
-    hand = load_hand(claw_file)
-    sphere = builtin("sphere")
-    table = Scene.table_under(np.asarray(sphere.mesh.vertices))
+def _plan_clear_of_the_table(path: Path, name: str):
+    """The hand of ``path`` plans the built-in ``name`` resting on a table (30 particles x
+    20 iterations, 3 grasps, seed 0): the best grasp has force closure, every one two or
+    more contacts, its joints within their limits and the whole hand (the URDF's own
+    geometry, yourdfpy's kinematics, python-fcl) at least the clearance above the table.
+    Returns (hand, result)."""
+    hand = load_hand(path)
+    obj = builtin(name)
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
     options = PlanOptions(particles=30, iterations=20, max_grasps=3)
-    result = plan(sphere, options=options, rng=np.random.default_rng(0), hand=hand, scene=table)
+    result = plan(obj, options=options, rng=np.random.default_rng(0), hand=hand, scene=table)
     assert result.candidates and result.candidates[0].force_closure
-    urdf = yourdfpy.URDF.load(str(claw_file), build_collision_scene_graph=False, load_meshes=False)
-    table_z = float(np.asarray(sphere.mesh.vertices)[:, 2].min())
+    urdf = yourdfpy.URDF.load(str(path), build_collision_scene_graph=False, load_meshes=False)
+    table_z = float(np.asarray(obj.mesh.vertices)[:, 2].min())
     for cand in result.candidates:
         assert len(cand.contacts) >= 2
-        cfg = {j: float(v) for j, v in zip(hand.actuated_joints, cand.joint_positions)}
-        urdf.update_cfg(cfg)
+        q = np.asarray(cand.joint_positions)
+        assert np.all(q >= hand.lower - 1e-9) and np.all(q <= hand.upper + 1e-9)
+        urdf.update_cfg({j: float(v) for j, v in zip(hand.actuated_joints, q)})
         assert _table_distance(urdf, np.asarray(cand.wrist_pose), table_z) >= options.clearance - 5e-4
+    return hand, result
+
+
+def test_a_claw_plans_grasps_clear_of_the_table(claw_file):
+    """The claw plans the built-in sphere resting on a table (:func:`_plan_clear_of_the_table`)."""
+    _plan_clear_of_the_table(claw_file, "sphere")
 
 
 def test_a_flat_fingertip_has_its_pad_in_the_middle_of_its_width(tmp_path):
@@ -282,7 +291,7 @@ def test_a_flat_fingertip_has_its_pad_in_the_middle_of_its_width(tmp_path):
     12 mm off), on every finger, also the one whose flexion axes point the other way."""
     hand = load_hand(_write_claw(tmp_path, tip_box=(0.03, 0.01, 0.025), name="flat"), spheres=False)
     assert len(hand.fingers) == 3
-    for f, finger in enumerate(hand.fingers):
+    for finger in hand.fingers:
         angle = 2.0 * math.pi * int(finger.tip_link[1]) / 3.0
         tangent = np.array([-math.sin(angle), math.cos(angle), 0.0])  # the flexion axis (link frame at zero)
         assert abs(float(np.asarray(finger.pad_center) @ tangent)) < 0.002, (finger.name, finger.pad_center)
@@ -293,24 +302,10 @@ def test_a_gripper_opens_its_fingers_past_straight_to_take_a_wide_object(tmp_pat
     """A claw whose straight fingers stand 35 mm apart (20 mm from its axis, as a Schunk
     SDH's stand 6 cm apart) and bend back as far as they close: the 70 mm cube on a table
     fits between them only with the fingers opened past straight. GRG draws a claw's
-    closing joints from half their opening on; the plans take the cube with force closure,
-    two or more contacts, the claw clear of the table (yourdfpy, python-fcl on the URDF's
-    own geometry). Drawn from straight on, no draw made two legal contacts."""
-    path = _write_claw(tmp_path, radius=0.02, name="gripper")
-    hand = load_hand(path)
-    cube = builtin("cube")
-    table = Scene.table_under(np.asarray(cube.mesh.vertices))
-    options = PlanOptions(particles=30, iterations=20, max_grasps=3)
-    result = plan(cube, options=options, rng=np.random.default_rng(0), hand=hand, scene=table)
-    assert result.candidates and result.candidates[0].force_closure
-    urdf = yourdfpy.URDF.load(str(path), build_collision_scene_graph=False, load_meshes=False)
-    table_z = float(np.asarray(cube.mesh.vertices)[:, 2].min())
-    for cand in result.candidates:
-        assert len(cand.contacts) >= 2
-        q = np.asarray(cand.joint_positions)
-        assert np.all(q >= hand.lower - 1e-9) and np.all(q <= hand.upper + 1e-9)
-        urdf.update_cfg({j: float(v) for j, v in zip(hand.actuated_joints, q)})
-        assert _table_distance(urdf, np.asarray(cand.wrist_pose), table_z) >= options.clearance - 5e-4
+    closing joints from half their opening on; the plans take the cube as
+    :func:`_plan_clear_of_the_table` requires. Drawn from straight on, no draw made two
+    legal contacts."""
+    hand, result = _plan_clear_of_the_table(_write_claw(tmp_path, radius=0.02, name="gripper"), "cube")
     # the best grasp's pre-grasp bends a finger back past straight (against its closing sense)
     pre = np.asarray(result.candidates[0].pre_grasp_positions)
     past = [sense * pre[hand.actuated_joints.index(joint)] for f in hand.fingers
