@@ -2,7 +2,8 @@
 sensor links fixed on the phalanges, a mimic joint whose own limits contradict its
 leader's, and a three-finger claw whose fingers extend along the palm normal (dex-urdf's
 Allegro with FSRs, its left Schunk SVH and its D'Claw have these; the files here are
-written by the test, from the Allegro-like hand of ``hand_files`` or from scratch).
+written by the test, from the Allegro-like hand of ``hand_files`` or from scratch), also as
+a gripper with flat fingertips whose fingers bend back (a Schunk SDH, a Robotiq three-finger).
 
 The claw's plans are checked without the planner's geometry: python-fcl on the URDF's
 own collision boxes and spheres placed by yourdfpy's kinematics against the table.
