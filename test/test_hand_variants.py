@@ -241,6 +241,35 @@ def test_a_claw_reaches_ahead_of_its_palm_and_a_hand_does_not(claw_file, allegro
     assert (_open_fraction(claw), _open_fraction(hand)) == (CLAW_OPEN_FRACTION, OPEN_FRACTION)
 
 
+def test_a_claws_preshape_joints_are_drawn_anywhere_and_a_hands_abduction_near_open(claw_file, allegro_file):
+    """GRG draws a claw's pre-shape joints (the base joints turning its fingers sideways)
+    anywhere in their range, as a thumb's: a claw's fingers stand apart around its palm, and
+    those joints set the grasp's type (the Schunk SDH's knuckle: two fingers facing the
+    thumb, or a triangle). A hand's abduction stays near its open value (within
+    ``SPREAD_FRACTION`` of its range): spread fingers collide."""
+    from grasp_apso.geometry.any_hand_decoder import make_any_hand_model
+    from grasp_apso.search.any_hand_grg import SPREAD_FRACTION, _preshape
+
+    sphere = builtin("sphere")
+    for path, claw in ((claw_file, True), (allegro_file, False)):
+        model = make_any_hand_model(load_hand(path), sphere)
+        hand = model.hand
+        q = _preshape(model, 2000, np.random.default_rng(0), 0.5)
+        for finger in hand.fingers:
+            if finger.is_thumb:
+                continue
+            for joint, sense in zip(finger.joints, finger.closing):
+                if sense:
+                    continue
+                j = hand.actuated_joints.index(joint)
+                low, high = hand.lower[j], hand.upper[j]
+                span = float(np.ptp(q[:, j]))
+                if claw:
+                    assert span > 0.9 * (high - low), (joint, span, high - low)
+                else:
+                    assert span <= 2.0 * SPREAD_FRACTION * (high - low) + 1e-9, (joint, span, high - low)
+
+
 def _table_distance(urdf: yourdfpy.URDF, wrist: np.ndarray, table_z: float) -> float:
     """Least python-fcl distance (m) of the URDF's own collision boxes, cylinders and
     spheres, placed by yourdfpy at the grasp, to a 4 m box whose top face is the table."""

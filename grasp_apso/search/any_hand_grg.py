@@ -5,8 +5,8 @@ which also turns them to the free side of support planes), standoffs in the hand
 (biased toward the palm), pre-shapes within the joint limits: each closing joint in the
 open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense; a
 claw's from past its open posture where it can bend back, :data:`CLAW_OPEN_PAST`),
-the thumb's pre-shape joints anywhere in their range (also those that move another finger
-too), the other fingers' abduction near its open value. A particle is kept
+the thumb's and a claw's pre-shape joints anywhere in their range (the thumb's also where
+they move another finger too), the other fingers' abduction near its open value. A particle is kept
 when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
 more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
@@ -100,7 +100,11 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
         for k in range(int(t.j_count[f])):
             j = int(t.j_index[f, k])
             if np.isnan(t.j_target[f, k]):
-                if j not in thumb_joints:  # abduction near its open value: spread fingers collide
+                # abduction near its open value: spread fingers collide. A claw's fingers stand
+                # apart around its palm, and its pre-shape joints set the grasp's type (the
+                # Schunk SDH's knuckle turns two fingers from facing the thumb to a triangle):
+                # anywhere in their range, as the thumb's.
+                if j not in thumb_joints and not t.closes_ahead:
                     spread.append(row)
                     spread_j.append(j)
                     half.append(SPREAD_FRACTION * (hi[j] - lo[j]))
