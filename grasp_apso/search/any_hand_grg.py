@@ -113,7 +113,7 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
             closing.append(row)
             closing_j.append(j)
             target.append(float(t.j_target[f, k]))
-            opposite = lo[j] if target[-1] > t.open_q[j] else hi[j]
+            opposite = lo[j] if target[-1] == hi[j] else hi[j]  # the limit against its closing sense
             past.append(CLAW_OPEN_PAST * (opposite - t.open_q[j]) if t.closes_ahead else 0.0)
             row += 1
     ints = (lambda v: np.array(v, dtype=np.int64))
