@@ -176,16 +176,16 @@ def _write_claw(folder: Path, radius: float = _CLAW_RADIUS, tip_box: tuple | Non
         sign = -1.0 if f == 1 else 1.0
         parent, xyz = "base", radius * radial
         for k, length in enumerate((0.02, *_CLAW_LENGTHS)):
-            name = f"f{f}_link{k}"
+            link = f"f{f}_link{k}"
             axis = radial if k == 0 else sign * tangent
             limits = (-0.3, 0.3) if k == 0 else (-1.57, 1.57)
             lines.append(f'  <joint name="f{f}_joint{k}" type="revolute"><origin xyz="{xyz[0]:.9g} {xyz[1]:.9g} '
-                         f'{xyz[2]:.9g}" rpy="0 0 0"/><parent link="{parent}"/><child link="{name}"/>'
+                         f'{xyz[2]:.9g}" rpy="0 0 0"/><parent link="{parent}"/><child link="{link}"/>'
                          f'<axis xyz="{axis[0]:.9g} {axis[1]:.9g} {axis[2]:.9g}"/>'
                          f'<limit lower="{limits[0]}" upper="{limits[1]}" effort="2" velocity="5"/></joint>')
-            lines.append(f'  <link name="{name}"><collision><origin xyz="0 0 {length / 2:.9g}" rpy="0 0 0"/>'
+            lines.append(f'  <link name="{link}"><collision><origin xyz="0 0 {length / 2:.9g}" rpy="0 0 0"/>'
                          f'<geometry><box size="0.016 0.016 {length:.9g}"/></geometry></collision></link>')
-            parent, xyz = name, (0.0, 0.0, length)
+            parent, xyz = link, (0.0, 0.0, length)
         lines.append(f'  <joint name="f{f}_tip_joint" type="fixed"><origin xyz="0 0 {_CLAW_LENGTHS[-1]:.9g}" '
                      f'rpy="0 0 0"/><parent link="{parent}"/><child link="f{f}_tip"/></joint>')
         if tip_box is None:
