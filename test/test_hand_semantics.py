@@ -186,6 +186,28 @@ def test_not_a_hand_file(tmp_path):
         load_hand(tmp_path / "missing.urdf")
 
 
+def test_a_hand_in_xacro_is_named_as_such_and_an_expanded_one_loads(allegro_file, tmp_path):
+    """Most ROS hand packages ship xacro (the Schunk SDH's, the Robotiq's): a ``.xacro``
+    file, or a ``.urdf`` still holding ``<xacro:...>`` elements, is refused with what to do
+    (expand it with xacro), not read in part. An expanded URDF that keeps the xacro namespace
+    on its robot element and quotes a macro call in a comment (as the Robotiq's does) loads."""
+    text = allegro_file.read_text()
+    assert text.count("<robot ") == 1
+    macro = text.replace("<robot ", '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" ', 1).replace(
+        "</robot>", '<xacro:macro name="hand" params="prefix"></xacro:macro>\n</robot>')
+    for name in ("hand.urdf.xacro", "hand.urdf"):
+        path = allegro_file.parent / f"xacro_{name}"
+        path.write_text(macro)
+        with pytest.raises(HandDescriptionError, match="xacro.*expand it first") as info:
+            load_hand(path, spheres=False)
+        assert info.value.field == "hand_description"
+    expanded = allegro_file.parent / "expanded.urdf"
+    expanded.write_text(text.replace("<robot ", '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" ', 1).replace(
+        "</robot>", '<!-- <xacro:hand prefix=""/> -->\n</robot>'))  # a macro call quoted in a comment
+    assert [f.tip_link for f in load_hand(expanded, spheres=False).fingers] == \
+        [f.tip_link for f in load_hand(allegro_file, spheres=False).fingers]
+
+
 def test_a_missing_collision_mesh_is_named_and_missing_visual_meshes_are_ignored(allegro_file, tmp_path):
     # The generated URDF's visual meshes (.dae) do not exist: it loads.
     assert not list(allegro_file.parent.rglob("*.dae"))

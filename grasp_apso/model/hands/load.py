@@ -80,6 +80,11 @@ def load_hand(path: str | Path | None = None, config: str | Path | dict | None =
 
     path = default_hand_path() if path is None or str(path) == "" else Path(path)
     kind = SUFFIXES.get(path.suffix.lower())
+    if kind is None and path.suffix.lower() == ".xacro":  # how most ROS hand packages ship
+        from .urdf_loader import XACRO_HINT
+
+        raise HandDescriptionError(f"hand_description: {path.name} is a xacro file, not a URDF: {XACRO_HINT}",
+                                   field="hand_description")
     if kind is None:
         raise HandDescriptionError(f"hand_description: {path.name} is not a URDF (.urdf), MJCF (.xml) or "
                                    "YAML (.yaml) file", field="hand_description")

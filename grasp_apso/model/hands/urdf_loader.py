@@ -113,9 +113,20 @@ def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeom
     return None
 
 
+#: What to do with a hand described in xacro (the macros most ROS hand packages ship).
+XACRO_HINT = ("expand it first (ROS's xacro: `xacro FILE.urdf.xacro > hand.urdf`; a file of macros only "
+              "needs a top-level file that calls them) and give the URDF")
+
+
 def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF") -> RawHand:
     """The RawHand of a URDF document (``base_dir``: where relative mesh paths start)."""
     import yourdfpy  # a pinned dependency; imported here to keep package import light
+
+    # Unexpanded macros: a URDF reader would take what it can and miss the rest. (Comments
+    # left out: xacro's own output may quote a macro call in one, as the Robotiq's does.)
+    if "<xacro:" in re.sub(r"<!--.*?-->", "", text, flags=re.S):
+        raise HandDescriptionError(f"hand_description: {label} holds xacro elements (<xacro:...>), not a plain "
+                                   f"URDF: {XACRO_HINT}", field="hand_description")
 
     try:
         # Bytes: lxml refuses a str that carries an encoding declaration (<?xml ... encoding=?>).
