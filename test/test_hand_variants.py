@@ -101,6 +101,25 @@ def test_a_fingertip_with_only_a_marker_for_geometry_is_noted(allegro_file, tmp_
     assert not any("frame marker or a sensor" in n for n in load_hand(allegro_file, spheres=False).notes)
 
 
+def test_limits_that_let_a_finger_close_through_the_palm_are_noted(allegro_file, tmp_path):
+    """The thumb's flexion joints given the range [0, pi] (as the Robotiq three-finger URDF
+    of TAMS-Group gives every phalanx): 70 % of the way closed its pad lies inside the
+    palm, and a note names the finger and asks whether its limits are right. The hand as
+    written has no such note."""
+    import re
+
+    text = allegro_file.read_text()
+    for k in (1, 2, 3):
+        text, n = re.subn(rf'(<joint name="thumb_joint_{k}".*?<limit lower=")[^"]*(" upper=")[^"]*',
+                          r"\g<1>0\g<2>3.1416", text, flags=re.S)
+        assert n == 1
+    path = tmp_path / "allegro_thumb_pi.urdf"
+    path.write_text(text)
+    notes = [n for n in load_hand(path, spheres=False).notes if "inside the palm" in n]
+    assert len(notes) == 1 and notes[0].startswith("finger thumb:") and "joint limits" in notes[0], notes
+    assert not any("inside the palm" in n for n in load_hand(allegro_file, spheres=False).notes)
+
+
 def test_a_leader_that_its_followers_limits_leave_no_range_is_held(tmp_path):
     """The coupled Allegro-like hand with the index distal joint (mimic of the middle one,
     multiplier 1) limited to [-1.709, -0.174]: the middle joint's own range [-0.174, 1.709]
