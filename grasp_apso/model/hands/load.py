@@ -43,10 +43,9 @@ _SEED = 20
 _SMALL_TIP = 0.008
 #: A pad this deep (m) inside the palm's collision geometry with its finger 70 % of the way
 #: to its closing limits (as the derivation closes it for the palm normal) is noted: the
-#: finger's limits let it close through the palm. Measured 70 % closed on 33 hands: the
-#: pads of every hand with its own limits lie at least 4.4 mm less deep than this (menagerie's LEAP
-#: thumb touches at 4.4 mm); the Robotiq three-finger URDF whose phalanges all range over
-#: [0, pi] puts them 15-18 mm inside.
+#: finger's limits let it close through the palm. Measured 70 % closed on 33 hands: no pad
+#: of a hand with sound limits lies deeper than 4.4 mm (menagerie's LEAP thumb); the Robotiq
+#: three-finger URDF whose phalanges all range over [0, pi] puts them 15-18 mm inside.
 _CLOSED_IN_PALM = 0.01
 
 
