@@ -179,7 +179,8 @@ TUNABLES: tuple[Tunable, ...] = (
        0.0, 3600.0, lo_open=True, unit="s", scope="simulation"),
     # --- node: resources and security ----------------------------------------------
     _t("hand_description", str, "", "Path of the hand description: a URDF (.urdf), MJCF (.xml) or the "
-       "project's YAML (.yaml); empty = the paper's hand shipped in the package. Loaded once at start-up; "
+       "project's YAML (.yaml) (a xacro file is refused: expand it first, `xacro hand.urdf.xacro > "
+       "hand.urdf`); empty = the paper's hand shipped in the package. Loaded once at start-up; "
        "every request plans with it and replies over its actuated joints.",
        scope="node", read_only=True),
     _t("hand_config", str, "", "Path of a YAML file overriding what is derived from the hand "
