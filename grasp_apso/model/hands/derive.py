@@ -43,6 +43,10 @@ _WEAK_VOTE = 0.2
 #: A link of a fingertip's body whose collision geometry spans less than this share of the
 #: body's largest is a marker (a tip frame drawn as a small box or ball), never the tip.
 _MARKER_SHARE = 0.2
+#: The palm normal is taken toward the fingertips closed this share of the way to their
+#: closing limits (:func:`_palm_normal`; the loader notes limits that close a finger
+#: through the palm at that posture).
+PALM_NORMAL_FRACTION = 0.7
 
 
 def _children(raw: RawHand) -> dict[str | None, list[str]]:
@@ -384,7 +388,7 @@ def _palm_normal(hand, info, tip_points, q0, thumb_f) -> np.ndarray:
                 continue
             k = hand.actuated_joints.index(a)
             target = hand.upper[k] if i["sigma"] * sense > 0 else hand.lower[k]
-            q[k] = q0[k] + 0.7 * (target - q0[k])
+            q[k] = q0[k] + PALM_NORMAL_FRACTION * (target - q0[k])
     centre = tip_points(q[None])[0].mean(axis=0)
     fallback = _unit(sum(_unit(i["sigma"] * i["curl"]) for f, i in enumerate(info) if f != thumb_f))
     geoms = hand.collision.get(hand.root_link, ())

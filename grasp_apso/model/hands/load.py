@@ -24,7 +24,7 @@ from ... import tunables
 from ...cache import approximate_nbytes, cached
 from ...errors import HandDescriptionError
 from .config import HandConfig, read_config
-from .derive import derive_fingers, find_root, finger_label, finger_tips
+from .derive import PALM_NORMAL_FRACTION, derive_fingers, find_root, finger_label, finger_tips
 from .description import RawHand, kinematics, lagging_couplings
 from .model import Finger, HandModel, readonly
 
@@ -42,10 +42,11 @@ _SEED = 20
 #: noted: no real fingertip is that small, a frame marker or a sensor is.
 _SMALL_TIP = 0.008
 #: A pad this deep (m) inside the palm's collision geometry with its finger 70 % of the way
-#: to its closing limits (as the derivation closes it for the palm normal) is noted: the
-#: finger's limits let it close through the palm. Measured 70 % closed on 33 hands: no pad
-#: of a hand with sound limits lies deeper than 4.4 mm (menagerie's LEAP thumb); the Robotiq
-#: three-finger URDF whose phalanges all range over [0, pi] puts them 15-18 mm inside.
+#: to its closing limits (``PALM_NORMAL_FRACTION``, as the derivation closes it for the palm
+#: normal) is noted: the finger's limits let it close through the palm. Measured 70 % closed
+#: on 33 hands: no pad of a hand with sound limits lies deeper than 4.4 mm (menagerie's LEAP
+#: thumb); the Robotiq three-finger URDF whose phalanges all range over [0, pi] puts them
+#: 15-18 mm inside.
 _CLOSED_IN_PALM = 0.01
 
 
@@ -190,26 +191,35 @@ def _derived(raw: RawHand, cfg: HandConfig, source_hash: str) -> tuple[HandModel
                                        field="hand_config.closing")
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
     fingers = tuple(_finger(bare, label, sem, cfg, normal) for label, sem in zip(labels, semantics))
-    for finger in fingers:
-        span = _span(bare.collision[finger.tip_link])
+    hand = replace(bare, fingers=fingers)
+    notes.extend(_small_tips(hand) + _closing_into_palm(hand))
+    return replace(bare, notes=tuple(notes)), fingers, normal
+
+
+def _small_tips(hand) -> list[str]:
+    """Notes for the fingers whose tip link has less than :data:`_SMALL_TIP` of collision
+    geometry (a frame marker or a sensor left where the fingertip's geometry is missing)."""
+    notes = []
+    for finger in hand.fingers:
+        span = _span(hand.collision[finger.tip_link])
         if span < _SMALL_TIP:
             notes.append(f"finger {finger.name}: its tip link {finger.tip_link} has only {1000 * span:.1f} mm of "
                          "collision geometry (a frame marker or a sensor, the fingertip's own geometry missing?): "
                          "give the fingertip link in hand_config.fingers if this is not it")
-    notes.extend(_closing_into_palm(replace(bare, fingers=fingers)))
-    return replace(bare, notes=tuple(notes)), fingers, normal
+    return notes
 
 
 def _closing_into_palm(hand) -> list[str]:
     """Notes for the fingers whose pads lie more than :data:`_CLOSED_IN_PALM` inside the
-    root link's collision geometry 70 % of the way to their closing limits: limits that let
-    a finger close through the palm (a file's error) mislead the derived palm normal."""
+    root link's collision geometry ``PALM_NORMAL_FRACTION`` of the way to their closing
+    limits: limits that let a finger close through the palm (a file's error) mislead the
+    derived palm normal."""
     from .spheres import union_signed_distance
 
     palm = hand.collision.get(hand.root_link)
     if not palm:
         return []
-    poses = hand.link_transforms_batch(hand.closed_configuration(0.7)[None])[0]
+    poses = hand.link_transforms_batch(hand.closed_configuration(PALM_NORMAL_FRACTION)[None])[0]
     into_root = np.linalg.inv(poses[hand.link_index(hand.root_link)])
     notes = []
     for finger in hand.fingers:
@@ -217,10 +227,10 @@ def _closing_into_palm(hand) -> list[str]:
         pad = pose[:3, :3] @ np.asarray(finger.pad_center, float) + pose[:3, 3]
         depth = -float(union_signed_distance(palm, pad[None])[0])
         if depth > _CLOSED_IN_PALM:
-            notes.append(f"finger {finger.name}: 70 % of the way to its closing limits its pad lies "
-                         f"{1000 * depth:.0f} mm inside the palm ({hand.root_link}): are its joint limits right? "
-                         "The palm normal is derived from the fingers closed that far (give palm_normal in "
-                         "hand_config if the limits are)")
+            notes.append(f"finger {finger.name}: {100 * PALM_NORMAL_FRACTION:.0f} % of the way to its closing "
+                         f"limits its pad lies {1000 * depth:.0f} mm inside the palm ({hand.root_link}): are its "
+                         "joint limits right? The palm normal is derived from the fingers closed that far (give "
+                         "palm_normal in hand_config if the limits are)")
     return notes
 
 
