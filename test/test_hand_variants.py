@@ -101,6 +101,69 @@ def test_a_fingertip_with_only_a_marker_for_geometry_is_noted(allegro_file, tmp_
     assert not any("frame marker or a sensor" in n for n in load_hand(allegro_file, spheres=False).notes)
 
 
+def _write_covered(allegro_file: Path, folder: Path, thickness: float = 0.004) -> Path:
+    """The Allegro-like hand with a skin on each fingertip: a box 8 mm along the finger and
+    14 mm across fixed to the tip sphere over its pad, standing ``thickness`` proud of it
+    (sunk 1 mm into the sphere). As on TetherIA's Aero Hand Open, whose cover links sit
+    over the pad side of each distal phalanx, the fingertip reaches farther than its skin."""
+    from scipy.spatial.transform import Rotation
+
+    bare = load_hand(allegro_file, spheres=False)
+    skins = ""
+    for finger in bare.fingers:
+        normal = np.asarray(finger.pad_center, float) / np.linalg.norm(finger.pad_center)  # the sphere's centre: 0
+        along = np.array([0.0, 0.0, 1.0]) - normal[2] * normal  # the finger's axis across the normal
+        along /= np.linalg.norm(along)
+        rpy = Rotation.from_matrix(np.column_stack([along, np.cross(normal, along), normal])).as_euler("xyz")
+        depth = thickness + 0.001
+        at = np.asarray(finger.pad_center) + normal * (0.5 * depth - 0.001)
+        skins += (f'  <joint name="{finger.pad_link}_skin_joint" type="fixed"><origin xyz="{at[0]} {at[1]} {at[2]}" '
+                  f'rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/><parent link="{finger.pad_link}"/>'
+                  f'<child link="{finger.pad_link}_skin"/></joint>\n'
+                  f'  <link name="{finger.pad_link}_skin"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry>'
+                  f'<box size="0.008 0.014 {depth}"/></geometry></collision></link>\n')
+    path = folder / "allegro_skins.urdf"
+    path.write_text(allegro_file.read_text().replace("</robot>", skins + "</robot>"))
+    return path
+
+
+def test_a_cover_fixed_over_a_fingertips_pad_carries_the_pad(allegro_file, tmp_path):
+    """A skin link fixed over each fingertip's pad, 4 mm proud of it (the Aero Hand Open's
+    covers): the pad moves onto the skin's outer face, the fingertips stay the tips, a note
+    says so per finger; and the plans of the cube on a table touch with the skins: each
+    contacting finger's skin within 2 mm of the cube by python-fcl on the URDF's own boxes
+    placed by yourdfpy. Before, the pad stayed 4 mm under the skin."""
+    bare = load_hand(allegro_file, spheres=False)
+    path = _write_covered(allegro_file, tmp_path)
+    hand = load_hand(path)
+    assert [f.tip_link for f in hand.fingers] == [f.tip_link for f in bare.fingers]
+    assert [f.pad_link for f in hand.fingers] == [f"{f.pad_link}_skin" for f in bare.fingers]
+    for finger in hand.fingers:  # on the outer face (z = +2.5 mm in the skin's frame), near its middle
+        assert abs(float(finger.pad_center[2]) - 0.0025) < 5e-4, finger.pad_center
+        assert np.linalg.norm(np.asarray(finger.pad_center)[:2]) < 0.004, finger.pad_center
+    assert sum("covers the pad" in n for n in hand.notes) == len(hand.fingers), hand.notes
+    assert not any("covers the pad" in n for n in bare.notes)
+
+    obj = builtin("cube")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    result = plan(obj, options=PlanOptions(particles=30, iterations=20, max_grasps=3), rng=np.random.default_rng(0),
+                  hand=hand, scene=table)
+    assert result.candidates and result.candidates[0].force_closure
+    urdf = yourdfpy.URDF.load(str(path), build_collision_scene_graph=False, load_meshes=False)
+    half = 0.5 * np.ptp(np.asarray(obj.mesh.vertices), axis=0)
+    cube = fcl.CollisionObject(fcl.Box(*(2.0 * half)), fcl.Transform(np.asarray(obj.mesh.vertices).mean(axis=0)))
+    for cand in result.candidates:
+        urdf.update_cfg({j: float(v) for j, v in zip(hand.actuated_joints, cand.joint_positions)})
+        for contact in cand.contacts:
+            skin = hand.finger(contact.finger).pad_link
+            at = np.asarray(cand.wrist_pose) @ urdf.get_transform(skin, urdf.base_link) \
+                @ urdf.link_map[skin].collisions[0].origin
+            box = fcl.CollisionObject(fcl.Box(*urdf.link_map[skin].collisions[0].geometry.box.size),
+                                      fcl.Transform(at[:3, :3], at[:3, 3]))
+            gap = fcl.distance(box, cube, fcl.DistanceRequest(), fcl.DistanceResult())
+            assert gap <= 0.002, (contact.finger, gap)
+
+
 def test_limits_that_let_a_finger_close_through_the_palm_are_noted(allegro_file, tmp_path):
     """The thumb's flexion joints given the range [0, pi] (as the Robotiq three-finger URDF
     of TAMS-Group gives every phalanx): 70 % of the way closed its pad lies inside the

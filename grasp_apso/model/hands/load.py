@@ -27,6 +27,7 @@ from .config import HandConfig, read_config
 from .derive import PALM_NORMAL_FRACTION, derive_fingers, find_root, finger_label, finger_tips
 from .description import RawHand, kinematics, lagging_couplings
 from .model import Finger, HandModel, readonly
+from .pad_cover import COVERED, covering_link
 
 __all__ = ["load_hand", "hand_from_raw", "SUFFIXES"]
 
@@ -192,7 +193,7 @@ def _derived(raw: RawHand, cfg: HandConfig, source_hash: str) -> tuple[HandModel
     semantics, normal, notes = derive_fingers(bare, tips, overrides)
     fingers = tuple(_finger(bare, label, sem, cfg, normal) for label, sem in zip(labels, semantics))
     hand = replace(bare, fingers=fingers)
-    notes.extend(_small_tips(hand) + _closing_into_palm(hand))
+    notes.extend(_small_tips(hand) + _closing_into_palm(hand) + _covered_pads(hand, cfg))
     return replace(bare, notes=tuple(notes)), fingers, normal
 
 
@@ -293,8 +294,23 @@ def _finger(hand: HandModel, label: str, sem, cfg: HandConfig, palm_normal: np.n
 
     at = probe_pad(hand, sem.tip_link, sem.joints, sem.closing, palm_normal)
     center, radius = find_pad(hand.collision[sem.tip_link], sem.palmar, sem.distal, at=at)
-    return Finger(label, sem.tip_link, sem.joints, sem.closing, sem.tip_link, readonly(center), float(radius),
-                  sem.is_thumb)
+    cover = covering_link(hand, sem.tip_link, center)
+    if cover is None:
+        return Finger(label, sem.tip_link, sem.joints, sem.closing, sem.tip_link, readonly(center), float(radius),
+                      sem.is_thumb)
+    # a skin or cover fixed over the pad is what touches: the pad is on it, where the
+    # pad's normal leaves it (the directions turned into its frame)
+    name, point, _, pose = cover
+    turn = pose[:3, :3].T
+    center, radius = find_pad(hand.collision[name], turn @ sem.palmar, turn @ sem.distal, at=point)
+    return Finger(label, sem.tip_link, sem.joints, sem.closing, name, readonly(center), float(radius), sem.is_thumb)
+
+
+def _covered_pads(hand, cfg: HandConfig) -> list[str]:
+    """Notes for the fingers whose pad moved onto a link covering it (:mod:`.pad_cover`)."""
+    return [f"finger {f.name}: a link fixed to its tip link {f.tip_link} covers the pad there by more than "
+            f"{1000 * COVERED:.0f} mm: the pad is on {f.pad_link} (give hand_config.pads.{f.name} if it is not)"
+            for f in hand.fingers if f.pad_link != f.tip_link and f.name not in cfg.get("pads", {})]
 
 
 def _spheres(hand: HandModel, cfg: HandConfig) -> dict:
