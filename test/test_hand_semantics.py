@@ -208,6 +208,30 @@ def test_a_hand_in_xacro_is_named_as_such_and_an_expanded_one_loads(allegro_file
         [f.tip_link for f in load_hand(allegro_file, spheres=False).fingers]
 
 
+def test_a_linkage_closed_only_in_gazebo_is_refused_and_other_gazebo_elements_load(allegro_file):
+    """Inspire's tactile hand closes its finger linkages with joints inside ``<gazebo>``
+    elements (SDF joints between two of its links): the URDF tree alone leaves its linkage
+    joints free. Such a file is refused, naming the loop-closing joints and what to give
+    instead; ``<gazebo>`` elements that close no loop (a material, a plugin, a joint to the
+    world) load."""
+    text = allegro_file.read_text()
+    loop = ('<gazebo><joint name="index_loop" type="revolute"><parent>palm</parent><child>index_middle</child>'
+            '<axis>0 0 1</axis></joint></gazebo>\n')
+    assert '<link name="palm">' in text and '<link name="index_middle">' in text
+    closed = allegro_file.parent / "gazebo_closed.urdf"
+    closed.write_text(text.replace("</robot>", loop + "</robot>"))
+    with pytest.raises(HandDescriptionError, match=r"loops.*index_loop \(palm - index_middle\).*<mimic>") as info:
+        load_hand(closed, spheres=False)
+    assert info.value.field == "hand_description"
+    harmless = ('<gazebo reference="palm"><material>Gazebo/Grey</material></gazebo>\n'
+                '<gazebo><joint name="to_world" type="fixed"><parent>world</parent><child>palm</child></joint>'
+                '<plugin name="p" filename="libp.so"/></gazebo>\n')
+    opened = allegro_file.parent / "gazebo_open.urdf"
+    opened.write_text(text.replace("</robot>", harmless + "</robot>"))
+    assert [f.tip_link for f in load_hand(opened, spheres=False).fingers] == \
+        [f.tip_link for f in load_hand(allegro_file, spheres=False).fingers]
+
+
 def test_a_missing_collision_mesh_is_named_and_missing_visual_meshes_are_ignored(allegro_file, tmp_path):
     # The generated URDF's visual meshes (.dae) do not exist: it loads.
     assert not list(allegro_file.parent.rglob("*.dae"))

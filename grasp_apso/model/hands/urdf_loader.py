@@ -118,6 +118,32 @@ XACRO_HINT = ("expand it first (ROS's xacro: `xacro FILE.urdf.xacro > hand.urdf`
               "needs a top-level file that calls them) and give the URDF")
 
 
+def _refuse_gazebo_loops(text: str, links: set[str], label: str) -> None:
+    """Refuse a URDF that closes kinematic loops with joints only Gazebo reads
+    (``<gazebo><joint>`` between two of its links: a linkage exported so, as Inspire's
+    tactile hand is, whose URDF tree alone leaves 30 joints moving freely where the hand
+    has 6 actuators). The tree without its loops moves links the hand cannot move; planned
+    with it, none of 30 grasps held."""
+    from lxml import etree  # yourdfpy's parser
+
+    try:
+        root = etree.fromstring(text.encode("utf-8"))
+    except etree.XMLSyntaxError:
+        return  # yourdfpy has read it; nothing more to learn here
+    loops = []
+    for joint in root.iterfind("gazebo/joint"):
+        parent, child = joint.findtext("parent", "").strip(), joint.findtext("child", "").strip()
+        if parent in links and child in links:
+            loops.append(f"{joint.get('name', '?')} ({parent} - {child})")
+    if loops:
+        more = f" and {len(loops) - 2} more" if len(loops) > 2 else ""
+        raise HandDescriptionError(
+            f"hand_description: {label} closes kinematic loops with joints only Gazebo reads (<gazebo><joint>: "
+            f"{', '.join(loops[:2])}{more}): a URDF tree cannot express them and without them its linkage joints "
+            "move freely; give a description whose passive joints follow their actuators as <mimic> joints "
+            "(an MJCF's joint equalities also do)", field="hand_description")
+
+
 def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF") -> RawHand:
     """The RawHand of a URDF document (``base_dir``: where relative mesh paths start)."""
     import yourdfpy  # a pinned dependency; imported here to keep package import light
@@ -147,6 +173,7 @@ def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF
         for end in (joint.parent, joint.child):
             if end not in link_names:
                 raise HandDescriptionError(f"joint {joint.name!r}: link {end!r} is not defined", field=joint.name)
+    _refuse_gazebo_loops(text, set(link_names), label)
     tops = [name for name in link_names if name not in joints_by_child]
     if len(tops) != 1:
         raise HandDescriptionError(f"hand_description: a URDF needs one root link, found {len(tops)} "
