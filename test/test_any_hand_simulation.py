@@ -460,6 +460,47 @@ def test_an_mjcfs_defaults_do_not_reach_the_object(tmp_path):
     assert all(m.geom_margin[g] == 0.0 for g in geoms)
 
 
+_SWINGING = """<mujoco model="swinging">
+  <worldbody>
+    <body name="palm"><geom type="box" size="0.08 0.04 0.01"/>
+      <body name="f0_1" pos="0.02 0 0.01"><joint name="f0_j1" axis="0 1 0" range="0 2.2"/>
+        <geom type="capsule" fromto="0 0 0.009 0 0 0.04" size="0.008"/>
+        <body name="f0_2" pos="0 0 0.04"><joint name="f0_j2" axis="0 1 0" range="0 2.2"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
+      <body name="f1_1" pos="-0.02 0 0.01"><joint name="f1_j1" axis="0 -1 0" range="0 2.2"/>
+        <geom type="capsule" fromto="0 0 0.009 0 0 0.04" size="0.008"/>
+        <body name="f1_2" pos="0 0 0.04"><joint name="f1_j2" axis="0 -1 0" range="0 2.2"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_a_link_turning_into_the_palm_it_hinges_on_does_not_collide_with_it(tmp_path):
+    """A finger's first link swung down onto the palm box it hinges on (5-7 mm into it;
+    clear of it in the open posture): MuJoCo makes no contact between them, as for a hand free in space
+    (MuJoCo filters a body's contacts with its parent, but not with a parent welded to the
+    world, as the held root is) and as the planner's check, which never checks adjacent
+    links. The link beyond it, bent into the palm, still collides with it. Before, the
+    first link's contact pushed the finger off its servo target (LEAP's thumb base)."""
+    path = tmp_path / "swinging.xml"
+    path.write_text(_SWINGING)
+    hand = load_hand(path, spheres=False)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), hand.open_configuration())
+    m, d = sc.model, sc.data
+
+    def contacts(q: dict) -> set:
+        for name, value in q.items():
+            d.qpos[m.jnt_qposadr[m.joint(name).id]] = value
+        mujoco.mj_forward(m, d)
+        return {frozenset((m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name))
+                for c in d.contact[:d.ncon] if c.dist < 0}
+
+    assert frozenset(("palm", "f0_1")) not in contacts({"f0_j1": 1.5, "f0_j2": 0.0})
+    assert frozenset(("palm", "f0_2")) in contacts({"f0_j1": 0.8, "f0_j2": 2.0})
+    assert not contacts({"f0_j1": 0.0, "f0_j2": 0.0})
+
+
 def test_a_urdf_with_collada_meshes_in_mm_loads_and_simulates(tmp_path):
     # ROS descriptions often give collision meshes as COLLADA files, whose <unit> says how
     # long a unit is (RViz applies it): the loader reads them in metres, and the simulation,

@@ -226,8 +226,8 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
     import mujoco
 
     data = mujoco.MjData(model)
-    # Parent-child pairs too: once the root is welded to the world MuJoCo no longer filters
-    # the root's contacts with its children.
+    # Parent-child pairs too (and all of them: _keep_parent_filter): once the root is welded
+    # to the world MuJoCo no longer filters the root's contacts with its children.
     flags = int(model.opt.disableflags)
     model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
     pairs = set()
@@ -244,6 +244,36 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
     model.opt.disableflags = flags
     for a, b in sorted(pairs):
         spec.add_exclude(bodyname1=a, bodyname2=b)
+
+
+def _keep_parent_filter(spec, chain) -> None:
+    """Exclude the contacts of each moving body with the bodies it hinges on (its parent
+    and the bodies fixed to that parent in the file) where those are about to be welded to
+    the world (``chain``, the bodies from the world to the root, and the bodies fixed to
+    them). MuJoCo filters a body's contacts with its parent, but not when the parent is
+    welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
+    would collide with the link they hinge on, where the hand free in space (as
+    DexGraspBench simulates it) and the planner's python-fcl check (adjacent links are never
+    checked) let them overlap. Measured before: LEAP's thumb base pressed 1.9 mm into its
+    palm in a grasp of the sphere and its servo gave way; the thumb touched 8 mm from where
+    it was planned."""
+    static = {body.name for body in chain}
+    for body in spec.bodies:  # parents before children
+        if body.parent is not None and body.parent.name in static and not body.joints:
+            static.add(body.name)
+    excluded = {frozenset((ex.bodyname1, ex.bodyname2)) for ex in spec.excludes}
+    for body in spec.bodies:
+        if body.name in static or not body.joints or body.parent is None:
+            continue
+        parent = body.parent
+        while parent is not None and parent.name != "world":  # the parent's weld group in the file
+            pair = frozenset((parent.name, body.name))
+            if parent.name in static and pair not in excluded:
+                spec.add_exclude(bodyname1=parent.name, bodyname2=body.name)
+                excluded.add(pair)
+            if parent.joints:
+                break
+            parent = parent.parent
 
 
 def _hold_root(spec, hand, postures) -> np.ndarray:
@@ -264,6 +294,7 @@ def _hold_root(spec, hand, postures) -> np.ndarray:
     except Exception as exc:
         raise SimulationError(f"simulation: MuJoCo cannot compile hand {hand.name!r}: {exc}") from exc
     _exclude_overlaps(spec, model, hand, postures)
+    _keep_parent_filter(spec, chain)
     data = mujoco.MjData(model)
     for name, value in hand.held_joints.items():
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
