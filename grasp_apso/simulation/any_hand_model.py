@@ -254,9 +254,9 @@ def _keep_parent_filter(spec, chain) -> None:
     welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
     would collide with the link they hinge on, where the hand free in space (as
     DexGraspBench simulates it) and the planner's python-fcl check (adjacent links are never
-    checked) let them overlap. Measured before: LEAP's thumb base pressed 1.9 mm into its
-    palm in a grasp of the sphere and its servo gave way; the thumb touched 8 mm from where
-    it was planned."""
+    checked) let them overlap. Measured before: in a grasp of the sphere LEAP's thumb base
+    stood 1.9 mm inside its palm with a contact force of the order of 1e15 N (the best
+    grasps held by default on 6 hands were the same with and without the filter)."""
     static = {body.name for body in chain}
     for body in spec.bodies:  # parents before children
         if body.parent is not None and body.parent.name in static and not body.joints:

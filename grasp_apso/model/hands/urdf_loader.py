@@ -126,8 +126,9 @@ def _refuse_gazebo_loops(text: str, links: set[str], label: str) -> None:
     with it, none of 30 grasps held."""
     from lxml import etree  # yourdfpy's parser
 
+    parser = etree.XMLParser(resolve_entities=False, no_network=True)  # a file from outside
     try:
-        root = etree.fromstring(text.encode("utf-8"))
+        root = etree.fromstring(text.encode("utf-8"), parser)
     except etree.XMLSyntaxError:
         return  # yourdfpy has read it; nothing more to learn here
     loops = []
