@@ -425,21 +425,23 @@ def test_urdf_with_unphysical_inertia_compiles(tmp_path):
     assert a + b >= c * (1 - 1e-9)
 
 
-_MM_DEFAULTS = """<mujoco model="mm_defaults">
-  <default><mesh scale="0.001 0.001 0.001"/><geom margin="0.01"/></default>
-  <worldbody>
-    <body name="palm"><geom type="box" size="0.04 0.04 0.01"/>
-      <body name="f0_1" pos="0.02 0 0.01"><joint name="f0_j1" axis="0 1 0" range="0 1.5"/>
-        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
-        <body name="f0_2" pos="0 0 0.04"><joint name="f0_j2" axis="0 1 0" range="0 1.5"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
-      <body name="f1_1" pos="-0.02 0 0.01"><joint name="f1_j1" axis="0 -1 0" range="0 1.5"/>
-        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
-        <body name="f1_2" pos="0 0 0.04"><joint name="f1_j2" axis="0 -1 0" range="0 1.5"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
-    </body>
-  </worldbody>
-</mujoco>"""
+def _two_fingers(model: str, palm_half_x: float = 0.04, first_from: float = 0.0, upper: float = 1.5,
+                 defaults: str = "") -> str:
+    """An MJCF hand: a palm box and two fingers of two hinges (capsules along +z at zero),
+    mirrored about the palm's middle; ``first_from`` (m) where the first capsule starts
+    above its hinge, ``upper`` (rad) the hinges' upper limit."""
+    fingers = ""
+    for k, (x, axis) in enumerate(((0.02, "0 1 0"), (-0.02, "0 -1 0"))):
+        fingers += (f'      <body name="f{k}_1" pos="{x} 0 0.01"><joint name="f{k}_j1" axis="{axis}" range="0 {upper}"/>\n'
+                    f'        <geom type="capsule" fromto="0 0 {first_from} 0 0 0.04" size="0.008"/>\n'
+                    f'        <body name="f{k}_2" pos="0 0 0.04"><joint name="f{k}_j2" axis="{axis}" range="0 {upper}"/>\n'
+                    '          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>\n')
+    return (f'<mujoco model="{model}">\n{defaults}  <worldbody>\n'
+            f'    <body name="palm"><geom type="box" size="{palm_half_x} 0.04 0.01"/>\n'
+            + fingers + "    </body>\n  </worldbody>\n</mujoco>")
+
+
+_MM_DEFAULTS = _two_fingers("mm_defaults", defaults='  <default><mesh scale="0.001 0.001 0.001"/><geom margin="0.01"/></default>\n')
 
 
 def test_an_mjcfs_defaults_do_not_reach_the_object(tmp_path):
@@ -460,20 +462,7 @@ def test_an_mjcfs_defaults_do_not_reach_the_object(tmp_path):
     assert all(m.geom_margin[g] == 0.0 for g in geoms)
 
 
-_SWINGING = """<mujoco model="swinging">
-  <worldbody>
-    <body name="palm"><geom type="box" size="0.08 0.04 0.01"/>
-      <body name="f0_1" pos="0.02 0 0.01"><joint name="f0_j1" axis="0 1 0" range="0 2.2"/>
-        <geom type="capsule" fromto="0 0 0.009 0 0 0.04" size="0.008"/>
-        <body name="f0_2" pos="0 0 0.04"><joint name="f0_j2" axis="0 1 0" range="0 2.2"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
-      <body name="f1_1" pos="-0.02 0 0.01"><joint name="f1_j1" axis="0 -1 0" range="0 2.2"/>
-        <geom type="capsule" fromto="0 0 0.009 0 0 0.04" size="0.008"/>
-        <body name="f1_2" pos="0 0 0.04"><joint name="f1_j2" axis="0 -1 0" range="0 2.2"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>
-    </body>
-  </worldbody>
-</mujoco>"""
+_SWINGING = _two_fingers("swinging", palm_half_x=0.08, first_from=0.009, upper=2.2)
 
 
 def test_a_link_turning_into_the_palm_it_hinges_on_does_not_collide_with_it(tmp_path):
