@@ -121,8 +121,8 @@ XACRO_HINT = ("expand it first (ROS's xacro: `xacro FILE.urdf.xacro > hand.urdf`
 def _refuse_gazebo_loops(text: str, links: set[str], label: str) -> None:
     """Refuse a URDF that closes kinematic loops with joints only Gazebo reads
     (``<gazebo><joint>`` between two of its links: a linkage exported so, as Inspire's
-    tactile hand is, whose URDF tree alone leaves 30 joints moving freely where the hand
-    has 6 actuators). The tree without its loops moves links the hand cannot move; planned
+    tactile hand is, whose URDF tree alone leaves 30 joints moving freely; Inspire's hands
+    have 6 actuators). The tree without its loops moves links the hand cannot move; planned
     with it, none of 30 grasps held."""
     from lxml import etree  # yourdfpy's parser
 
