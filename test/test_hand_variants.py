@@ -143,6 +143,14 @@ def test_a_cover_fixed_over_a_fingertips_pad_carries_the_pad(allegro_file, tmp_p
         assert np.linalg.norm(np.asarray(finger.pad_center)[:2]) < 0.004, finger.pad_center
     assert sum("covers the pad" in n for n in hand.notes) == len(hand.fingers), hand.notes
     assert not any("covers the pad" in n for n in bare.notes)
+    # a pad given in hand_config (here on the skin, its centre moved) is taken as given,
+    # with no note for that finger
+    index = next(f for f in hand.fingers if f.tip_link == "index_tip")
+    given = load_hand(path, config={"pads": {index.name: {"link": "index_tip_skin", "center": [0.001, 0.0, 0.0025],
+                                                          "radius": 0.007}}}, spheres=False)
+    np.testing.assert_allclose(given.finger(index.name).pad_center, [0.001, 0.0, 0.0025])
+    assert not any(n.startswith(f"finger {index.name}:") and "covers the pad" in n for n in given.notes)
+    assert sum("covers the pad" in n for n in given.notes) == len(hand.fingers) - 1
 
     obj = builtin("cube")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
