@@ -428,15 +428,15 @@ def test_urdf_with_unphysical_inertia_compiles(tmp_path):
 def _two_fingers(model: str, palm_half_x: float = 0.04, first_from: float = 0.0, upper: float = 1.5,
                  defaults: str = "") -> str:
     """An MJCF hand: a palm box and two fingers of two hinges (capsules along +z at zero),
-    mirrored about the palm's middle; ``first_from`` (m) where the first capsule starts
-    above its hinge, ``upper`` (rad) the hinges' upper limit."""
+    mirrored about the palm's middle (angles in radians); ``first_from`` (m) where the first
+    capsule starts above its hinge, ``upper`` (rad) the hinges' upper limit."""
     fingers = ""
     for k, (x, axis) in enumerate(((0.02, "0 1 0"), (-0.02, "0 -1 0"))):
         fingers += (f'      <body name="f{k}_1" pos="{x} 0 0.01"><joint name="f{k}_j1" axis="{axis}" range="0 {upper}"/>\n'
                     f'        <geom type="capsule" fromto="0 0 {first_from} 0 0 0.04" size="0.008"/>\n'
                     f'        <body name="f{k}_2" pos="0 0 0.04"><joint name="f{k}_j2" axis="{axis}" range="0 {upper}"/>\n'
                     '          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/></body></body>\n')
-    return (f'<mujoco model="{model}">\n{defaults}  <worldbody>\n'
+    return (f'<mujoco model="{model}">\n  <compiler angle="radian"/>\n{defaults}  <worldbody>\n'
             f'    <body name="palm"><geom type="box" size="{palm_half_x} 0.04 0.01"/>\n'
             + fingers + "    </body>\n  </worldbody>\n</mujoco>")
 
@@ -488,6 +488,32 @@ def test_a_link_turning_into_the_palm_it_hinges_on_does_not_collide_with_it(tmp_
     assert frozenset(("palm", "f0_1")) not in contacts({"f0_j1": 1.5, "f0_j2": 0.0})
     assert frozenset(("palm", "f0_2")) in contacts({"f0_j1": 0.8, "f0_j2": 2.0})
     assert not contacts({"f0_j1": 0.0, "f0_j2": 0.0})
+
+
+def test_links_overlapping_the_palm_in_the_open_posture_do_not_collide_with_it(tmp_path):
+    """The open posture of a hand whose joint ranges exclude 0 (f0's hinges in [0.8, 2.2] and
+    [2.0, 2.2]: its distal link bent 7 mm into the palm box) has that overlap excluded, so
+    MuJoCo does not push the finger off its targets there; f1, open at 0 and clear of the
+    palm, still collides with it when bent in. Before, the overlaps were looked for at the
+    file's zero posture: the joint values were never set (a numpy joint type compared with
+    MuJoCo's enums by ``in`` is never found), and the open posture's contact stayed."""
+    path = tmp_path / "bent_open.xml"
+    path.write_text(_SWINGING.replace('name="f0_j1" axis="0 1 0" range="0 2.2"', 'name="f0_j1" axis="0 1 0" range="0.8 2.2"')
+                    .replace('name="f0_j2" axis="0 1 0" range="0 2.2"', 'name="f0_j2" axis="0 1 0" range="2.0 2.2"'))
+    hand = load_hand(path, spheres=False)
+    q_open = hand.open_configuration()
+    assert q_open[hand.actuated_joints.index("f0_j1")] == pytest.approx(0.8)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), q_open)
+    m, d = sc.model, sc.data
+    mujoco.mj_forward(m, d)
+    touching = {frozenset((m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name))
+                for c in d.contact[:d.ncon] if c.dist < 0}
+    assert frozenset(("palm", "f0_2")) not in touching
+    d.qpos[m.jnt_qposadr[m.joint("f1_j1").id]] = 0.8
+    d.qpos[m.jnt_qposadr[m.joint("f1_j2").id]] = 2.0
+    mujoco.mj_forward(m, d)
+    assert any({m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name} == {"palm", "f1_2"}
+               for c in d.contact[:d.ncon] if c.dist < 0)
 
 
 def test_a_urdf_with_collada_meshes_in_mm_loads_and_simulates(tmp_path):

@@ -219,6 +219,20 @@ def _keep_only_the_hand(spec, top_name: str) -> None:
             spec.delete(pair)
 
 
+def _set_joints(model, data, values) -> None:
+    """Set the hinge and slide joints of ``values`` ((name, value) pairs, rad or m) in
+    ``data.qpos``; names the model lacks are skipped. The joint types are compared as
+    ints: a numpy int is never found ``in`` a tuple of MuJoCo's enums, and the values were
+    once never set that way."""
+    import mujoco
+
+    settable = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    for name, value in values:
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0 and int(model.jnt_type[j]) in settable:
+            data.qpos[model.jnt_qposadr[j]] = value
+
+
 def _exclude_overlaps(spec, model, hand, postures) -> None:
     """Exclude the contacts of hand body pairs whose geoms already overlap at one of
     ``postures`` ((m,) full joint vectors): the file's own overlapping geometry (a thumb
@@ -232,10 +246,7 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
     model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
     pairs = set()
     for full in postures:
-        for name, value in zip(hand.joint_names, full):
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if j >= 0 and model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
-                data.qpos[model.jnt_qposadr[j]] = value
+        _set_joints(model, data, zip(hand.joint_names, full))
         mujoco.mj_fwdPosition(model, data)
         for c in data.contact[:data.ncon]:
             if c.dist < 0:
@@ -296,10 +307,7 @@ def _hold_root(spec, hand, postures) -> np.ndarray:
     _exclude_overlaps(spec, model, hand, postures)
     _keep_parent_filter(spec, chain)
     data = mujoco.MjData(model)
-    for name, value in hand.held_joints.items():
-        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if j >= 0 and model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
-            data.qpos[model.jnt_qposadr[j]] = value
+    _set_joints(model, data, hand.held_joints.items())
     mujoco.mj_kinematics(model, data)
     world = [_pose(data.xpos[model.body(b.name).id], data.xquat[model.body(b.name).id]) for b in chain]
     for k in range(1, len(chain)):
