@@ -240,10 +240,8 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
     import mujoco
 
     data = mujoco.MjData(model)
-    # Parent-child pairs too (and all of them: _keep_parent_filter): once the root is welded
-    # to the world MuJoCo no longer filters the root's contacts with its children.
-    flags = int(model.opt.disableflags)
-    model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    # (A body and the body it hinges on: MuJoCo filters their contacts, and
+    # _keep_parent_filter where the latter is welded to the world.)
     pairs = set()
     for full in postures:
         _set_joints(model, data, zip(hand.joint_names, full))
@@ -252,16 +250,15 @@ def _exclude_overlaps(spec, model, hand, postures) -> None:
             if c.dist < 0:
                 a, b = (model.body(model.geom_bodyid[g]).name for g in (c.geom1, c.geom2))
                 pairs.add(tuple(sorted((a, b))))
-    model.opt.disableflags = flags
     for a, b in sorted(pairs):
         spec.add_exclude(bodyname1=a, bodyname2=b)
 
 
 def _keep_parent_filter(spec, chain) -> None:
-    """Exclude the contacts of each moving body with the bodies it hinges on (its parent
-    and the bodies fixed to that parent in the file) where those are about to be welded to
-    the world (``chain``, the bodies from the world to the root, and the bodies fixed to
-    them). MuJoCo filters a body's contacts with its parent, but not when the parent is
+    """Exclude the contacts of each moving body (and the bodies fixed below it) with the
+    bodies it hinges on (its parent and the bodies fixed to that parent in the file) where
+    those are about to be welded to the world (``chain``, the bodies from the world to the
+    root, and the bodies fixed to them). MuJoCo filters a body's contacts with its parent, but not when the parent is
     welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
     would collide with the link they hinge on, where the hand free in space (as
     DexGraspBench simulates it) and the planner's python-fcl check (adjacent links are never
@@ -276,12 +273,23 @@ def _keep_parent_filter(spec, chain) -> None:
     for body in spec.bodies:
         if body.name in static or not body.joints or body.parent is None:
             continue
+        # MuJoCo's filter is by weld group: the body with the bodies fixed below it, against
+        # its parent with the bodies the parent is fixed to (an ORCA finger's link fixed
+        # below the joint body that hinges on the palm)
+        group, below = [body.name], list(body.bodies)
+        while below:
+            child = below.pop()
+            if not child.joints:
+                group.append(child.name)
+                below.extend(child.bodies)
         parent = body.parent
         while parent is not None and parent.name != "world":  # the parent's weld group in the file
-            pair = frozenset((parent.name, body.name))
-            if parent.name in static and pair not in excluded:
-                spec.add_exclude(bodyname1=parent.name, bodyname2=body.name)
-                excluded.add(pair)
+            if parent.name in static:
+                for name in group:
+                    pair = frozenset((parent.name, name))
+                    if pair not in excluded:
+                        spec.add_exclude(bodyname1=parent.name, bodyname2=name)
+                        excluded.add(pair)
             if parent.joints:
                 break
             parent = parent.parent
