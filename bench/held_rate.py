@@ -221,6 +221,9 @@ def run_case(task: tuple) -> dict:
             "uncertainty_deg": np.degrees(unc).round(1).tolist(),
             "below_top_mm": (1000 * (top - pts[:, 2])).round(1).tolist(),
             "above_table_mm": (1000 * (pts[:, 2] - low)).round(1).tolist(),
+            # where the contacts lie about the centre of mass (object frame, mm): the lever the
+            # disturbance's force at the centre of mass has about them
+            "contacts_com_mm": (1000 * (pts_obj - obj.center_of_mass)).round(1).tolist(),
         }
         if general:
             features["planner_sim"] = int(cand.sim_result)
