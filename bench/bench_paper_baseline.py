@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import select
 import statistics
 import subprocess
 import sys
@@ -90,8 +91,14 @@ for line in sys.stdin:
 """
 
 
+#: Bounds on a worker's replies (s): its start (a tree's first run compiles its kernels)
+#: and one plan.
+START_TIMEOUT = 900.0
+PLAN_TIMEOUT = 300.0
+
+
 class Worker:
-    """One planning process on one source tree (bounded waits: a reply or its exit)."""
+    """One planning process on one source tree; every wait for a reply is bounded."""
 
     def __init__(self, tree: Path, hand_file: Path | None = None):
         env = {"PYTHONPATH": str(tree), "PATH": "/usr/bin:/bin", "HOME": str(Path.home()),
@@ -99,9 +106,13 @@ class Worker:
         argv = [sys.executable, "-c", WORKER] + ([str(hand_file)] if hand_file else [])
         self.proc = subprocess.Popen(argv, cwd=tree, env=env, text=True,
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        self._read()  # ready: the kernels loaded (compiled on a tree's first run)
+        self._read(START_TIMEOUT)  # ready: the kernels loaded (compiled on a tree's first run)
 
-    def _read(self) -> dict:
+    def _read(self, timeout: float) -> dict:
+        ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
+        if not ready:
+            self.proc.kill()
+            raise RuntimeError(f"worker gave no reply within {timeout:.0f} s")
         line = self.proc.stdout.readline()
         if not line:
             raise RuntimeError(f"worker exited with status {self.proc.wait()}")
@@ -110,10 +121,13 @@ class Worker:
     def plan(self, request: dict) -> dict:
         self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
-        return self._read()
+        return self._read(PLAN_TIMEOUT)
 
     def close(self) -> None:
-        self.proc.stdin.close()
+        try:
+            self.proc.stdin.close()  # the worker ends at the end of its input
+        except OSError:  # it has exited already
+            pass
         try:
             self.proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
