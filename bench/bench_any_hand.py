@@ -52,6 +52,7 @@ from grasp_apso.model.scene import Scene  # noqa: E402
 from grasp_apso.search.planner import PlanOptions, plan, warm_up  # noqa: E402
 from hand_files import installed_hand, write_allegro_like  # noqa: E402
 from held_rate import load as _object, mesh_names  # noqa: E402  (bench/, the script's folder)
+from tables import markdown_table  # noqa: E402
 
 TARGET_RATIO = 2.5
 DEFAULT_HANDS = ["shadow", "inspire", "allegro_like"]
@@ -134,13 +135,13 @@ def summarise(rec: dict, objects: list[str]) -> list[dict]:
 
 
 def table(rows: list[dict], objects: list[str]) -> str:
-    lines = ["| hand | " + " | ".join(objects) + " | median (s) | mean (s) | / paper | CPU / paper | returned "
-             "| cand./plan | cand. FC | best FC |", "|---|" + "---|" * (len(objects) + 8)]
-    for r in rows:
-        lines.append(f"| {r['hand']} | " + " | ".join(f"{r['per_object'][o]:.2f}" for o in objects)
-                     + f" | {r['median']:.2f} | {r['mean']:.2f} | {r['ratio']:.1f}x | {r['cpu_ratio']:.1f}x | {r['returned'] * 100:.0f}% "
-                     f"| {r['candidates_per_plan']:.1f} | {r['candidate_fc'] * 100:.0f}% | {r['best_fc'] * 100:.0f}% |")
-    return "\n".join(lines)
+    header = ["hand", *objects, "median (s)", "mean (s)", "/ paper", "CPU / paper", "returned", "cand./plan",
+              "cand. FC", "best FC"]
+    return markdown_table(header, [
+        [r["hand"], *(f"{r['per_object'][o]:.2f}" for o in objects), f"{r['median']:.2f}", f"{r['mean']:.2f}",
+         f"{r['ratio']:.1f}x", f"{r['cpu_ratio']:.1f}x", f"{r['returned'] * 100:.0f}%",
+         f"{r['candidates_per_plan']:.1f}", f"{r['candidate_fc'] * 100:.0f}%", f"{r['best_fc'] * 100:.0f}%"]
+        for r in rows])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -44,6 +44,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from held_rate import BUILTINS, MESH_DIR, mesh_names  # noqa: E402  (bench/, the script's folder)
+from tables import markdown_table  # noqa: E402
 
 #: The code before issue 21: issue 20 (any hand from its file) merged, issue 21 not begun.
 ISSUE_21_BASE = "31f510a"
@@ -198,13 +199,11 @@ def summarise(rec: dict, objects: list[str]) -> dict:
 
 
 def table(s: dict, objects: list[str], rev: str) -> str:
-    lines = ["| paper hand | " + " | ".join(objects) + " | median (s) | / before | CPU / before | cand./plan "
-             "| same best grasp as before |", "|---|" + "---|" * (len(objects) + 5)]
-    for label, w in s["workers"].items():
-        lines.append(f"| {NAMES[label].format(rev=rev)} | " + " | ".join(f"{w['per_object'][o]:.3f}" for o in objects)
-                     + f" | {w['median']:.3f} | {w['ratio']:.2f}x | {w['cpu_ratio']:.2f}x "
-                     f"| {w['candidates_per_plan']:.1f} | {w['same_best']}/{s['plans']} |")
-    return "\n".join(lines)
+    header = ["paper hand", *objects, "median (s)", "/ before", "CPU / before", "cand./plan", "same best grasp as before"]
+    return markdown_table(header, [
+        [NAMES[label].format(rev=rev), *(f"{w['per_object'][o]:.3f}" for o in objects), f"{w['median']:.3f}",
+         f"{w['ratio']:.2f}x", f"{w['cpu_ratio']:.2f}x", f"{w['candidates_per_plan']:.1f}", f"{w['same_best']}/{s['plans']}"]
+        for label, w in s["workers"].items()])
 
 
 def main(argv: list[str] | None = None) -> int:
