@@ -8,6 +8,7 @@ Rerunnable, not a test::
     .venv/bin/python bench/held_rate.py --quick --algorithms apso --objects cube mug
     .venv/bin/python bench/held_rate.py --quick --algorithms apso --hand shadow [--simulate]
     .venv/bin/python bench/held_rate.py --quick --algorithms apso --hand path/to/hand.urdf
+    .venv/bin/python bench/held_rate.py --seeds 3 --algorithms apso --hand shadow --stable  # resting poses
 
 ``--hand``: any URDF / MJCF file (:func:`grasp_apso.model.hands.load_hand`), a test hand of
 ``test/hand_files.py`` (``shadow``, ``inspire``, ``allegro_like``, ...), one of the local
@@ -20,7 +21,8 @@ table only during the closing; held = within 5 cm and 15 degrees of the planned 
 Results go to ``bench/results/held_rate_<hand>[_simulate].json``.
 
 For each object (the four built-ins and every mesh of ``grasp_apso/data/meshes``), each
-pose (identity, then seeded random rotations about z), each algorithm (APSO, the simple
+pose (identity, then seeded random rotations about z; with ``--stable`` each mesh first
+turned into its most probable resting pose, :func:`stable_pose`), each algorithm (APSO, the simple
 PSO) and each seed 0..N-1: the object rests on a table (``Scene.table_under`` its lowest
 point), :func:`~grasp_apso.search.planner.plan` returns its ranked candidates, and every
 candidate is checked with :func:`~grasp_apso.simulation.simulate_grasp` (planes = the
