@@ -408,11 +408,12 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
     again (``ANALYTIC_ROUNDS``): the progress goes on from the first search's iterations,
     evaluations and time, and the result's history and ``iterations_run`` count both
     searches' iterations once (as the node's feedback promises: 1 .. iterations_run)."""
-    from grasp_apso.search.any_hand_planner import analytic_iterations
+    from grasp_apso.search.any_hand_planner import NO_CLOSURE_ROUNDS, analytic_iterations
 
     options = PlanOptions(particles=12, iterations=10, max_grasps=2)
     first, second = analytic_iterations(0, options.iterations), analytic_iterations(1, options.iterations)
     assert (first, second) == (7, 5)
+    counts = {first + k * second for k in range(NO_CLOSURE_ROUNDS)}
     rounds = set()
     for seed in range(4):
         obj = builtin("barrel")
@@ -423,9 +424,26 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
         assert [s.iteration for s in result.history] == [s.iteration for s in seen]
         assert all(b.evaluations > a.evaluations and b.elapsed >= a.elapsed for a, b in zip(seen, seen[1:]))
         assert result.evaluations >= seen[-1].evaluations
-        assert result.iterations_run in (first, first + second)
+        assert result.iterations_run in counts  # more than two searches: none found force closure before
         rounds.add(result.iterations_run)
     assert first + second in rounds  # a second search ran in at least one plan
+
+
+def test_searches_go_on_while_none_found_force_closure(hands):
+    """Without ``simulate`` a plan searches a third and a fourth time while no search found
+    a force-closure grasp (``NO_CLOSURE_ROUNDS``): the large marker lying on a table, which
+    no hand pinches in force closure above the clearance (docs/any-hand-measurements.md),
+    runs every search; a plan whose second search found force closure stops there."""
+    from grasp_apso.search.any_hand_planner import ANALYTIC_ROUNDS, NO_CLOSURE_ROUNDS, analytic_iterations
+
+    assert NO_CLOSURE_ROUNDS > ANALYTIC_ROUNDS
+    options = PlanOptions(particles=12, iterations=10, max_grasps=2)
+    first, second = analytic_iterations(0, options.iterations), analytic_iterations(1, options.iterations)
+    marker = _object("large_marker")
+    result = plan(marker, options=options, rng=np.random.default_rng(0), hand=hands["inspire"],
+                  scene=Scene.table_under(np.asarray(marker.mesh.vertices)))
+    assert not any(c.force_closure for c in result.candidates)
+    assert result.iterations_run == first + (NO_CLOSURE_ROUNDS - 1) * second
 
 
 def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
