@@ -429,12 +429,15 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
     assert first + second in rounds  # a second search ran in at least one plan
 
 
-def test_searches_go_on_while_none_found_force_closure(hands):
+def test_searches_go_on_while_none_found_force_closure(hands, monkeypatch):
     """Without ``simulate`` a plan searches a third and a fourth time while no search found
     a force-closure grasp (``NO_CLOSURE_ROUNDS``): the large marker lying on a table, which
     no hand pinches in force closure above the clearance (docs/any-hand-measurements.md),
-    runs every search; a plan whose second search found force closure stops there."""
-    from grasp_apso.search.any_hand_planner import ANALYTIC_ROUNDS, NO_CLOSURE_ROUNDS, analytic_iterations
+    runs every search; a plan that has force closure (not balanced) after two searches stops
+    there (the sphere)."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_planner import (ANALYTIC_ROUNDS, CLOSURE_CLASS, NO_CLOSURE_ROUNDS,
+                                                    analytic_iterations)
 
     assert NO_CLOSURE_ROUNDS > ANALYTIC_ROUNDS
     options = PlanOptions(particles=12, iterations=10, max_grasps=2)
@@ -444,6 +447,15 @@ def test_searches_go_on_while_none_found_force_closure(hands):
                   scene=Scene.table_under(np.asarray(marker.mesh.vertices)))
     assert not any(c.force_closure for c in result.candidates)
     assert result.iterations_run == first + (NO_CLOSURE_ROUNDS - 1) * second
+
+    classes = []  # the best class after each search that verified grasps
+    real = any_hand_planner.best_class
+    monkeypatch.setattr(any_hand_planner, "best_class", lambda checked: classes.append(real(checked)) or classes[-1])
+    sphere = builtin("sphere")
+    result = plan(sphere, options=options, rng=np.random.default_rng(0), hand=hands["inspire"],
+                  scene=Scene.table_under(np.asarray(sphere.mesh.vertices)))
+    assert classes == [CLOSURE_CLASS]  # force closure, not balanced: the second search found nothing above it
+    assert result.iterations_run == first + second and result.candidates[0].force_closure
 
 
 def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):

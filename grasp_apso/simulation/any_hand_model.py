@@ -258,8 +258,8 @@ def _keep_parent_filter(spec, chain) -> None:
     """Exclude the contacts of each moving body (and the bodies fixed below it) with the
     bodies it hinges on (its parent and the bodies fixed to that parent in the file) where
     those are about to be welded to the world (``chain``, the bodies from the world to the
-    root, and the bodies fixed to them). MuJoCo filters a body's contacts with its parent, but not when the parent is
-    welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
+    root, and the bodies fixed to them). MuJoCo filters a body's contacts with its parent,
+    but not when the parent is welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
     would collide with the link they hinge on, where the hand free in space (as
     DexGraspBench simulates it) and the planner's python-fcl check (adjacent links are never
     checked) let them overlap. Measured before: in a grasp of the sphere LEAP's thumb base
