@@ -348,7 +348,7 @@ def lift_test(model, data, settings, ref_pos: np.ndarray, ref_quat: np.ndarray) 
     the MuJoCo model and data (the check goes on from that state unchanged).
 
     The hand here is fixed to the world, so the lift is taken in the hand's frame, where it
-    is the same motion: the table (every world geom) drops away and the object starts
+    is the same motion: the table (the scene's geoms) drops away and the object starts
     moving down at the lift's speed (``LIFT_HEIGHT / LIFT_TIME``, at once: DexGraspBench's
     hand follows its mocap target through a weld, a softer start), pressed down by its
     weight, for ``LIFT_TIME``. (Moving the fixed hand instead, through its ``body_pos``,
@@ -364,8 +364,9 @@ def lift_test(model, data, settings, ref_pos: np.ndarray, ref_quat: np.ndarray) 
 
     m, d = copy.copy(model), copy.copy(data)
     body = m.body(OBJECT_BODY).id
-    for g in np.flatnonzero(m.geom_bodyid == 0):  # the table and obstacles: the hand leaves them
-        m.geom_contype[g] = m.geom_conaffinity[g] = 0
+    for g in range(m.ngeom):  # the table and obstacles (any_hand_model's "scene_*" geoms): the hand leaves them
+        if m.geom(g).name.startswith("scene_"):
+            m.geom_contype[g] = m.geom_conaffinity[g] = 0
     d.xfrc_applied[:] = 0.0
     d.xfrc_applied[body, 2] = -settings.object_mass * settings.disturbance
     dof = m.jnt_dofadr[m.body_jntadr[body]]  # the free joint: linear velocity first (world frame)
