@@ -359,14 +359,13 @@ def lift_test(model, data, settings, ref_pos: np.ndarray, ref_quat: np.ndarray) 
 
     import mujoco
 
-    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
-    from grasp_apso.simulation.phases import angle_between, instabilities
+    from grasp_apso.simulation.any_hand_model import OBJECT_BODY, SCENE_GEOM_PREFIX
+    from grasp_apso.simulation.phases import angle_between, disable_contacts, instabilities
 
     m, d = copy.copy(model), copy.copy(data)
     body = m.body(OBJECT_BODY).id
-    for g in range(m.ngeom):  # the table and obstacles (any_hand_model's "scene_*" geoms): the hand leaves them
-        if m.geom(g).name.startswith("scene_"):
-            m.geom_contype[g] = m.geom_conaffinity[g] = 0
+    # the table and obstacles: the hand leaves them
+    disable_contacts(m, [g for g in range(m.ngeom) if m.geom(g).name.startswith(SCENE_GEOM_PREFIX)])
     d.xfrc_applied[:] = 0.0
     d.xfrc_applied[body, 2] = -settings.object_mass * settings.disturbance
     dof = m.jnt_dofadr[m.body_jntadr[body]]  # the free joint: linear velocity first (world frame)

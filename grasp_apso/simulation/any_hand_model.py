@@ -48,10 +48,12 @@ from ..model.scene import BOX, CYLINDER, SPHERE
 from .mjcf import matrix_to_quat, object_inertia, plane_frame
 from .settings import SimulationSettings
 
-__all__ = ["AnyHandScene", "build_any_hand_scene", "OBJECT_BODY"]
+__all__ = ["AnyHandScene", "build_any_hand_scene", "OBJECT_BODY", "SCENE_GEOM_PREFIX"]
 
 #: Name of the object's body (free joint ``<OBJECT_BODY>_free``).
 OBJECT_BODY = "grasp_object"
+#: Names of the scene's geoms (support planes ``<prefix>plane<i>``, obstacles ``<prefix>obstacle<i>``).
+SCENE_GEOM_PREFIX = "scene_"
 #: Every contype / conaffinity bit MuJoCo has (int32, sign bit excluded).
 _ALL_BITS = (1 << 31) - 1
 #: Lower bounds of a hand body's mass (kg) and inertia (kg m^2) (MuJoCo's boundmass /
@@ -371,7 +373,7 @@ def _add_scene(spec, scene, settings: SimulationSettings, priority: int) -> list
         return names
     for i, plane in enumerate(np.asarray(scene.planes, float).reshape(-1, 4)):
         point, quat = plane_frame(plane)
-        g = spec.worldbody.add_geom(name=f"scene_plane{i}", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=point, quat=quat,
+        g = spec.worldbody.add_geom(name=f"{SCENE_GEOM_PREFIX}plane{i}", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=point, quat=quat,
                                     size=[0.0, 0.0, 1.0])
         _contact(g, settings, priority)
         names.append(g.name)
@@ -386,7 +388,7 @@ def _add_scene(spec, scene, settings: SimulationSettings, priority: int) -> list
         else:  # Scene validates kinds; a new kind must be added here
             raise InputError(f"scene.obstacles[{i}]: kind {ob.kind} is not simulated", "scene")
         pose = np.asarray(ob.pose, float)
-        g = spec.worldbody.add_geom(name=f"scene_obstacle{i}", type=kind, size=size, pos=pose[:3, 3],
+        g = spec.worldbody.add_geom(name=f"{SCENE_GEOM_PREFIX}obstacle{i}", type=kind, size=size, pos=pose[:3, 3],
                                     quat=matrix_to_quat(pose[:3, :3]))
         _contact(g, settings, priority)
         names.append(g.name)
