@@ -266,17 +266,18 @@ def test_simulate_ranks_held_grasps_first(hands):
 def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
     """With ``simulate`` a plan whose grasps all dropped searches again, up to
     ``SIMULATED_ROUNDS`` searches: it stops at the first search with a grasp that held and
-    returns only held grasps; a plan that never held searched the whole bound. The
-    searches are counted by spying on (not replacing) the selection."""
+    returns only held grasps; a plan that never held searched the whole bound, the searches
+    from ``TURNED_ROUNDS_FROM`` on with the long object's guidance turned. The searches are
+    counted by spying on (not replacing) the selection."""
     from grasp_apso.search import any_hand_planner
-    from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS
+    from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS, TURNED_ROUNDS_FROM
     from grasp_apso.search.result import SIM_HELD
 
     select = any_hand_planner.select_any
     calls = []
 
     def counting(*args, **kwargs):
-        calls.append(None)
+        calls.append(args[1].shape.across)  # args[1]: the search's problem
         return select(*args, **kwargs)
 
     monkeypatch.setattr(any_hand_planner, "select_any", counting)
@@ -289,6 +290,7 @@ def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
         result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["allegro"], scene=table)
         sims = [c.sim_result for c in result.candidates]
         assert 1 <= len(calls) <= SIMULATED_ROUNDS
+        assert calls == [i >= TURNED_ROUNDS_FROM for i in range(len(calls))], (seed, calls)
         if SIM_HELD in sims:
             assert set(sims) == {SIM_HELD}, (seed, sims)
             if len(calls) > 2:
@@ -296,6 +298,37 @@ def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
         else:
             assert len(calls) == SIMULATED_ROUNDS, (seed, len(calls))
     assert held_late, "no plan held only after its third search"
+
+
+def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, monkeypatch):
+    """The Shadow's screwdriver lying on a table (seed 3): none of the six searches with the
+    paper's guidance (palm y along the handle, so the thumb opposes along it) found a grasp
+    that held; the first search with the guidance turned (the fingers along the handle,
+    the thumb's opposition across it) did, and the plan returns only held grasps."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_planner import TURNED_ROUNDS_FROM
+    from grasp_apso.search.result import SIM_HELD
+
+    select = any_hand_planner.select_any
+    turned = []
+
+    def spying(*args, **kwargs):
+        turned.append(args[1].shape.across)  # args[1]: the search's problem
+        return select(*args, **kwargs)
+
+    monkeypatch.setattr(any_hand_planner, "select_any", spying)
+    obj = _object("phillips_screwdriver")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(3),
+                  hand=hands["shadow"], scene=table)
+    assert turned == [False] * TURNED_ROUNDS_FROM + [True]
+    assert result.candidates and {c.sim_result for c in result.candidates} == {SIM_HELD}
+    # the held grasp's fingers lie along the handle: palm x (the hand's palm basis turned
+    # by the root's pose) within 45 degrees of its long axis
+    from grasp_apso.geometry.any_hand_tables import hand_tables
+
+    palm_x = np.asarray(result.candidates[0].wrist_pose)[:3, :3] @ hand_tables(hands["shadow"]).basis[:, 0]
+    assert abs(palm_x @ np.asarray(obj.principal_axes)[0]) > np.cos(np.radians(45))
 
 
 def _verified_grasp(checked, cand):

@@ -47,6 +47,24 @@ def test_guided_wrists_follow_the_shape_class():
     assert (barrel.wrist_score(rot) >= 0).all() and (barrel.wrist_score(rot) <= 1).all()
 
 
+def test_turned_guidance_puts_the_fingers_along_a_long_object():
+    """``ShapeClass.turned``: the guided wrists and the shape factor take palm x (the
+    fingers), not palm y, along the long axis; a box-like object's guidance is unchanged."""
+    barrel = classify_shape(builtin("barrel"))
+    turned = barrel.turned()
+    rot = turned.sample_wrists(400, np.random.default_rng(4), guided_fraction=1.0)
+    axis = barrel.axes[0]
+    assert np.median(np.abs(rot[:, :, 2] @ axis)) < np.sin(np.radians(15))  # still across the long axis
+    assert np.median(np.abs(rot[:, :, 0] @ axis)) > np.cos(np.radians(15))  # fingers along it
+    assert np.median(np.abs(rot[:, :, 1] @ axis)) < np.sin(np.radians(15))
+    assert turned.wrist_score(rot).mean() > 0.8
+    assert barrel.wrist_score(rot).mean() < 0.2  # the paper's guidance scores them low
+    cube = classify_shape(builtin("cube"))
+    np.testing.assert_array_equal(cube.turned().sample_wrists(50, np.random.default_rng(1)),
+                                  cube.sample_wrists(50, np.random.default_rng(1)))
+    assert not barrel.across and turned.across
+
+
 def test_verification_regenerates_only_the_offending_finger():
     model = prepare(builtin("cube"), load_hand())
     shape = classify_shape(builtin("cube"))

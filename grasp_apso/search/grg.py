@@ -61,6 +61,11 @@ class ShapeClass:
         the approach (palm normal, pointing into the object) never points up out of a
         support (the hand never comes from below the table), so an object on a table is
         grasped from above or from the side.
+    across : bool
+        A long (cylinder-like or elongated) object's guidance turned a quarter: the fingers
+        (palm x) along the long axis instead of the spread (palm y). On a five-fingered hand
+        the thumb opposes the fingers nearly along palm y, so this guidance pinches the
+        object across its length (a pen picked off a desk); :meth:`turned`.
     """
 
     name: str
@@ -68,6 +73,11 @@ class ShapeClass:
     extents: np.ndarray
     box_fill: float
     support: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
+    across: bool = False
+
+    def turned(self) -> "ShapeClass":
+        """This class with a long object's guidance turned (``across``); other classes unchanged."""
+        return replace(self, across=True)
 
     def with_support(self, normals: np.ndarray) -> "ShapeClass":
         """This class with support planes of unit normals (K, 3) (object frame)."""
@@ -103,8 +113,9 @@ class ShapeClass:
         elif self.name in ("cylinder-like", "elongated"):
             phi = rng.uniform(0.0, 2.0 * math.pi, n)
             approach_g = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
-            spread = e0 * rng.choice([-1.0, 1.0], n)[:, None]  # palm y along the long axis
-            finger_g = np.cross(spread, approach_g)
+            along = e0 * rng.choice([-1.0, 1.0], n)[:, None]
+            # palm y along the long axis; turned, palm x (the fingers)
+            finger_g = along if self.across else np.cross(along, approach_g)
         else:
             approach_g, finger_g = approach, finger
         approach = np.where(guided[:, None], approach_g, approach)
@@ -153,7 +164,8 @@ class ShapeClass:
             return np.clip((cos - math.sqrt(0.5)) / (1.0 - math.sqrt(0.5)), 0.0, 1.0)
         if self.name in ("cylinder-like", "elongated"):
             along = np.abs(approach @ self.axes[0])
-            return np.sqrt(np.clip(1.0 - along**2, 0.0, 1.0)) * np.abs(spread @ self.axes[0])
+            lengthwise = rotations[:, :, 0] if self.across else spread
+            return np.sqrt(np.clip(1.0 - along**2, 0.0, 1.0)) * np.abs(lengthwise @ self.axes[0])
         return np.ones(len(rotations))
 
 
