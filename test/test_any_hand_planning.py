@@ -300,6 +300,31 @@ def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
     assert held_late, "no plan held only after its third search"
 
 
+def test_simulate_searches_an_object_with_no_long_axis_only_with_its_own_guidance(hands, monkeypatch):
+    """The bowl (sphere-like: no long axis to turn) with a small swarm, whose grasps all
+    drop: the plan stops after ``TURNED_ROUNDS_FROM`` searches, none turned, and returns the
+    grasps of the first search with their verdicts."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS, TURNED_ROUNDS_FROM
+    from grasp_apso.search.result import SIM_DROPPED
+
+    select = any_hand_planner.select_any
+    turned = []
+
+    def spying(*args, **kwargs):
+        turned.append(args[1].shape.across)
+        return select(*args, **kwargs)
+
+    monkeypatch.setattr(any_hand_planner, "select_any", spying)
+    obj = _object("bowl")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    options = PlanOptions(max_grasps=1, simulate=True, particles=20, iterations=10)
+    result = plan(obj, options=options, rng=np.random.default_rng(1), hand=hands["inspire"], scene=table)
+    assert TURNED_ROUNDS_FROM < SIMULATED_ROUNDS
+    assert turned == [False] * TURNED_ROUNDS_FROM
+    assert [c.sim_result for c in result.candidates] == [SIM_DROPPED]
+
+
 def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, monkeypatch):
     """The Shadow's screwdriver lying on a table (seed 3): none of the six searches with the
     paper's guidance (palm y along the handle, so the thumb opposes along it) found a grasp

@@ -63,6 +63,8 @@ def test_turned_guidance_puts_the_fingers_along_a_long_object():
     np.testing.assert_array_equal(cube.turned().sample_wrists(50, np.random.default_rng(1)),
                                   cube.sample_wrists(50, np.random.default_rng(1)))
     assert not barrel.across and turned.across
+    assert barrel.long and classify_shape(builtin("fish")).long and not cube.long
+    assert not classify_shape(builtin("sphere")).long
 
 
 def test_verification_regenerates_only_the_offending_finger():

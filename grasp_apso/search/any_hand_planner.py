@@ -45,8 +45,10 @@ __all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_h
 #: (Inspire's bowl seed 0); none at 7 or 8. Best grasps held, 63 plans each: Shadow 54 -> 56,
 #: Inspire 56 -> 58, Allegro-like 56 -> 60. A plan that never holds (the large marker, the
 #: bowl) takes longer: the slowest plans 3.7 -> 9.4 s (Shadow), 5.5 -> 12.5 s (Inspire),
-#: within the request's time bound (``should_stop`` between searches). Two more searches
-#: with a long object's guidance turned (:data:`TURNED_ROUNDS_FROM`): 6 -> 8.
+#: within the request's time bound (``should_stop`` between searches). For a long object
+#: (:attr:`~grasp_apso.search.grg.ShapeClass.long`) two more searches with its guidance
+#: turned (:data:`TURNED_ROUNDS_FROM`): 6 -> 8; other objects stop at
+#: :data:`TURNED_ROUNDS_FROM` searches (more of the same searches held none, above).
 SIMULATED_ROUNDS = 8
 #: With ``simulate``, the searches from this one on (0: the first) turn a long object's
 #: guidance (:meth:`~grasp_apso.search.grg.ShapeClass.turned`: the fingers along it, the
@@ -141,7 +143,10 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
     t1 = time.perf_counter()
     first, first_class, evaluations = None, -1, 0
     first_checked: tuple = ()
-    rounds = SIMULATED_ROUNDS if options.simulate else max(ANALYTIC_ROUNDS, NO_CLOSURE_ROUNDS)
+    if options.simulate:
+        rounds = SIMULATED_ROUNDS if shape.long else TURNED_ROUNDS_FROM
+    else:
+        rounds = max(ANALYTIC_ROUNDS, NO_CLOSURE_ROUNDS)
     done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
     for round_ in range(rounds):
         if not options.simulate and round_ >= ANALYTIC_ROUNDS and first_class >= CLOSURE_CLASS:

@@ -75,6 +75,11 @@ class ShapeClass:
     support: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     across: bool = False
 
+    @property
+    def long(self) -> bool:
+        """A cylinder-like or elongated object: guided along its long axis (which :meth:`turned` turns)."""
+        return self.name in ("cylinder-like", "elongated")
+
     def turned(self) -> "ShapeClass":
         """This class with a long object's guidance turned (``across``); other classes unchanged."""
         return replace(self, across=True)
@@ -110,7 +115,7 @@ class ShapeClass:
             approach_g = self.axes[k] * sign[:, None]
             j = (k + rng.integers(1, 3, n)) % 3
             finger_g = self.axes[j] * rng.choice([-1.0, 1.0], n)[:, None]
-        elif self.name in ("cylinder-like", "elongated"):
+        elif self.long:
             phi = rng.uniform(0.0, 2.0 * math.pi, n)
             approach_g = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             along = e0 * rng.choice([-1.0, 1.0], n)[:, None]
@@ -162,7 +167,7 @@ class ShapeClass:
         if self.name == "box-like":
             cos = np.abs(approach @ self.axes.T).max(axis=1)
             return np.clip((cos - math.sqrt(0.5)) / (1.0 - math.sqrt(0.5)), 0.0, 1.0)
-        if self.name in ("cylinder-like", "elongated"):
+        if self.long:
             along = np.abs(approach @ self.axes[0])
             lengthwise = rotations[:, :, 0] if self.across else spread
             return np.sqrt(np.clip(1.0 - along**2, 0.0, 1.0)) * np.abs(lengthwise @ self.axes[0])
