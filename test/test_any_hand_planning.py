@@ -263,24 +263,33 @@ def test_simulate_ranks_held_grasps_first(hands):
     assert held, "no plan had a grasp that held"
 
 
-def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
+@pytest.fixture
+def searches(monkeypatch):
+    """The searches of the plans made in a test, one entry per search: whether it turned a
+    long object's guidance. Counted by spying on (not replacing) the selection, which each
+    search calls once with its problem."""
+    from grasp_apso.search import any_hand_planner
+
+    select = any_hand_planner.select_any
+    seen: list[bool] = []
+
+    def spying(*args, **kwargs):
+        seen.append(args[1].shape.across)  # args[1]: the search's problem
+        return select(*args, **kwargs)
+
+    monkeypatch.setattr(any_hand_planner, "select_any", spying)
+    return seen
+
+
+def test_simulate_searches_again_until_a_grasp_held(hands, searches):
     """With ``simulate`` a plan whose grasps all dropped searches again, up to
     ``SIMULATED_ROUNDS`` searches: it stops at the first search with a grasp that held and
     returns only held grasps; a plan that never held searched the whole bound, the searches
-    from ``TURNED_ROUNDS_FROM`` on with the long object's guidance turned. The searches are
-    counted by spying on (not replacing) the selection."""
-    from grasp_apso.search import any_hand_planner
+    from ``TURNED_ROUNDS_FROM`` on with the long object's guidance turned."""
     from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS, TURNED_ROUNDS_FROM
     from grasp_apso.search.result import SIM_HELD
 
-    select = any_hand_planner.select_any
-    calls = []
-
-    def counting(*args, **kwargs):
-        calls.append(args[1].shape.across)  # args[1]: the search's problem
-        return select(*args, **kwargs)
-
-    monkeypatch.setattr(any_hand_planner, "select_any", counting)
+    calls = searches
     obj = _object("phillips_screwdriver")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
     options = PlanOptions(max_grasps=5, simulate=True)
@@ -300,53 +309,35 @@ def test_simulate_searches_again_until_a_grasp_held(hands, monkeypatch):
     assert held_late, "no plan held only after its third search"
 
 
-def test_simulate_searches_an_object_with_no_long_axis_only_with_its_own_guidance(hands, monkeypatch):
+def test_simulate_searches_an_object_with_no_long_axis_only_with_its_own_guidance(hands, searches):
     """The bowl (sphere-like: no long axis to turn) with a small swarm, whose grasps all
     drop: the plan stops after ``TURNED_ROUNDS_FROM`` searches, none turned, and returns the
     grasps of the first search with their verdicts."""
-    from grasp_apso.search import any_hand_planner
     from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS, TURNED_ROUNDS_FROM
     from grasp_apso.search.result import SIM_DROPPED
 
-    select = any_hand_planner.select_any
-    turned = []
-
-    def spying(*args, **kwargs):
-        turned.append(args[1].shape.across)
-        return select(*args, **kwargs)
-
-    monkeypatch.setattr(any_hand_planner, "select_any", spying)
     obj = _object("bowl")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
     options = PlanOptions(max_grasps=1, simulate=True, particles=20, iterations=10)
     result = plan(obj, options=options, rng=np.random.default_rng(1), hand=hands["inspire"], scene=table)
     assert TURNED_ROUNDS_FROM < SIMULATED_ROUNDS
-    assert turned == [False] * TURNED_ROUNDS_FROM
+    assert searches == [False] * TURNED_ROUNDS_FROM
     assert [c.sim_result for c in result.candidates] == [SIM_DROPPED]
 
 
-def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, monkeypatch):
+def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, searches):
     """The Shadow's screwdriver lying on a table (seed 3): none of the six searches with the
     paper's guidance (palm y along the handle, so the thumb opposes along it) found a grasp
     that held; the first search with the guidance turned (the fingers along the handle,
     the thumb's opposition across it) did, and the plan returns only held grasps."""
-    from grasp_apso.search import any_hand_planner
     from grasp_apso.search.any_hand_planner import TURNED_ROUNDS_FROM
     from grasp_apso.search.result import SIM_HELD
 
-    select = any_hand_planner.select_any
-    turned = []
-
-    def spying(*args, **kwargs):
-        turned.append(args[1].shape.across)  # args[1]: the search's problem
-        return select(*args, **kwargs)
-
-    monkeypatch.setattr(any_hand_planner, "select_any", spying)
     obj = _object("phillips_screwdriver")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
     result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(3),
                   hand=hands["shadow"], scene=table)
-    assert turned == [False] * TURNED_ROUNDS_FROM + [True]
+    assert searches == [False] * TURNED_ROUNDS_FROM + [True]
     assert result.candidates and {c.sim_result for c in result.candidates} == {SIM_HELD}
     # the held grasp's fingers lie along the handle: palm x (the hand's palm basis turned
     # by the root's pose) within 45 degrees of its long axis
