@@ -85,3 +85,37 @@ def test_covers_are_read_back_from_disk(tmp_path_factory, monkeypatch):
         assert np.array_equal(cover.centers, second.spheres[link].centers)
         assert np.array_equal(cover.radii, second.spheres[link].radii)
         assert cover.uncovered == second.spheres[link].uncovered
+
+
+def test_pads_are_read_back_from_disk_and_probed_again_when_the_hand_changes(tmp_path_factory, monkeypatch):
+    """A hand's probed pads (``pad_probe``) are kept on disk: a second load (a new process, a
+    command-line run) reads the same pads without probing; a hand whose fingertip geometry
+    differs is probed again. The probe is spied on, not replaced."""
+    from grasp_apso.model.hands import pad_probe
+
+    monkeypatch.setenv("GRASP_APSO_CACHE", str(tmp_path_factory.mktemp("pads")))
+    probed = []
+    probe = pad_probe._probe
+
+    def spying(hand, links, tip_link, poses, normal):
+        probed.append(tip_link)
+        return probe(hand, links, tip_link, poses, normal)
+
+    monkeypatch.setattr(pad_probe, "_probe", spying)
+    clear_caches()
+    first = load_hand(installed_hand("shadow"))
+    # every finger probed (this hand's fingers are derived twice: again with its tendons'
+    # couplings moved to the edge of their play, which moves four fingers' closing)
+    assert set(probed) == {f.tip_link for f in first.fingers} and len(first.fingers) == 5
+    assert len(list(pad_probe.cache_root().glob("hand_pads/*.npz"))) == len(probed)
+    clear_caches()
+    probed.clear()
+    second = load_hand(installed_hand("shadow"))
+    assert second is not first and probed == []  # read back, not probed
+    for a, b in zip(first.fingers, second.fingers):
+        assert (a.pad_link, a.pad_radius) == (b.pad_link, b.pad_radius)
+        np.testing.assert_array_equal(a.pad_center, b.pad_center)
+    # Another hand (the Allegro-like's boxes and cylinders) is probed, under its own keys.
+    clear_caches()
+    load_hand(write_allegro_like(tmp_path_factory.mktemp("allegro_pads")))
+    assert probed, "another hand's pads were read from the Shadow's entries"

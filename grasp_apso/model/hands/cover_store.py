@@ -22,7 +22,7 @@ from ...cache import cache_root, write_atomically
 from .geometry import LinkGeometry
 from .spheres import SphereCover
 
-__all__ = ["COVER_VERSION", "cover_key", "covers_from_disk"]
+__all__ = ["COVER_VERSION", "cover_key", "covers_from_disk", "hash_geometry"]
 
 #: Bump when :func:`.spheres.cover_link` changes what it returns for the same input.
 #: 2: a collision mesh's inward-facing inner shells (cavities) read outside again (covers of
@@ -35,6 +35,13 @@ _log = logging.getLogger(__name__)
 def cover_key(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object]) -> str:
     """sha256 of every link's collision geometry and the cover settings."""
     digest = hashlib.sha256(f"v{COVER_VERSION};{sorted(settings.items())!r}".encode())
+    hash_geometry(digest, collision)
+    return digest.hexdigest()
+
+
+def hash_geometry(digest, collision: Mapping[str, Sequence[LinkGeometry]]) -> None:
+    """Feed every link's collision geometry (kind, size, placement, mesh arrays) to ``digest``
+    (a hashlib object): the content of the geometry, not the files it came from."""
     for link in sorted(collision):
         digest.update(f"|{link}".encode())
         for geom in collision[link]:
@@ -43,7 +50,6 @@ def cover_key(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping
             if geom.mesh is not None:
                 digest.update(np.ascontiguousarray(geom.mesh.vertices, dtype=np.float64).tobytes())
                 digest.update(np.ascontiguousarray(geom.mesh.faces, dtype=np.int64).tobytes())
-    return digest.hexdigest()
 
 
 def covers_from_disk(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object],

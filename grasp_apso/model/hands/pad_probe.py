@@ -14,16 +14,31 @@ enters the sphere. When the tip link is the first link touched for most probes, 
 the point of its surface nearest the mean of its first-touch points.
 
 Pure numpy on surface samples of the links' exact collision geometry (no search kernels,
-no object): about a second per hand at load time.
+no object): about a second per hand (0.1-0.2 s a finger). The result is kept on disk under
+``<cache root>/hand_pads/`` (:func:`grasp_apso.cache.cache_root`), keyed by everything it is
+computed from (the chain links' collision geometry, their poses along the closing, the palm
+normal, this module's settings and :data:`PROBE_VERSION`), so that a command-line run, a
+restarted node or a batch worker reads a hand's pads back instead of probing them again.
 """
 
 from __future__ import annotations
 
+import hashlib
+import logging
+
 import numpy as np
 
+from ...cache import cache_root, write_atomically
+from .cover_store import hash_geometry
 from .pads import outer_surface_samples
 
-__all__ = ["probe_pad", "PROBE_RADII"]
+__all__ = ["probe_pad", "PROBE_RADII", "PROBE_VERSION"]
+
+#: Bump when :func:`probe_pad` (or the surface sampling it uses) changes what it returns for
+#: the same input.
+PROBE_VERSION = 1
+
+_log = logging.getLogger(__name__)
 
 #: Probe sphere radii (m): small, middling and large objects.
 PROBE_RADII = (0.015, 0.03, 0.06)
@@ -103,17 +118,57 @@ def probe_pad(hand, tip_link: str, joints, closing, palm_normal) -> np.ndarray |
     """
     if not hand.collision.get(tip_link) or not any(closing):
         return None
-    rng = np.random.default_rng(0)
     path = hand.chain(tip_link)
     links = [l for l in path[path.index(hand.root_link) + 1:] if hand.collision.get(l)]
-    samples = {l: _outer_samples(hand.collision[l], rng) for l in links}
     poses = hand.link_transforms_batch(_closing_path(hand, joints, closing))  # (S, L, 4, 4)
+    normal = np.asarray(palm_normal, float) / np.linalg.norm(palm_normal)
+    file = cache_root() / "hand_pads" / f"{_key(hand, links, tip_link, poses, normal)}.npz"
+    stored = _read(file)
+    if stored is not None:
+        return stored if len(stored) else None
+    pad = _probe(hand, links, tip_link, poses, normal)
+    error = write_atomically(file, lambda handle: np.savez(handle, pad=np.zeros(0) if pad is None else pad))
+    if error is not None:
+        _log.warning("cannot write pad cache %s: %s", file, error)
+    return pad
+
+
+def _key(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> str:
+    """sha256 of what :func:`_probe` computes from."""
+    settings = (PROBE_RADII, PROBE_TILTS, STEPS, PROBE_EVERY, SPACING, MAX_SAMPLES, MIN_SHARE, MIN_HITS, CHUNK,
+                PLANAR, OFF_MIDDLE)
+    digest = hashlib.sha256(f"v{PROBE_VERSION};{settings!r};{links!r};{tip_link!r}".encode())
+    hash_geometry(digest, {l: hand.collision[l] for l in links})
+    index = [hand.link_index(l) for l in links]
+    digest.update(np.ascontiguousarray(poses[:, index], dtype=np.float64).tobytes())
+    digest.update(np.ascontiguousarray(normal, dtype=np.float64).tobytes())
+    return digest.hexdigest()
+
+
+def _read(file) -> np.ndarray | None:
+    """The stored pad (3,), or (0,) for a probe that did not tell; None when not stored or
+    unreadable (then probed again)."""
+    if not file.is_file():
+        return None
+    try:
+        with np.load(file, allow_pickle=False) as data:
+            pad = np.array(data["pad"], dtype=float)
+    except (OSError, KeyError, ValueError) as exc:
+        _log.warning("ignoring unreadable pad cache %s: %s", file, exc)
+        return None
+    return pad if pad.shape in ((0,), (3,)) and np.all(np.isfinite(pad)) else None
+
+
+def _probe(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
+    """:func:`probe_pad` computed: ``links`` the tip's chain links with collision geometry,
+    ``poses`` (S, L, 4, 4) every link's along the closing, ``normal`` (3,) unit."""
+    rng = np.random.default_rng(0)
+    samples = {l: _outer_samples(hand.collision[l], rng) for l in links}
     world = {l: np.einsum("sij,kj->ski", poses[:, hand.link_index(l), :3, :3], samples[l])
              + poses[:, hand.link_index(l), None, :3, 3] for l in links}  # (S, K, 3)
     tip = poses[:, hand.link_index(tip_link)]
     far = _far_end(samples[tip_link], tip)
     far_path = np.einsum("sij,j->si", tip[:, :3, :3], far) + tip[:, :3, 3]  # (S, 3)
-    normal = np.asarray(palm_normal, float) / np.linalg.norm(palm_normal)
     centers, radii = [], []
     for k in range(PROBE_EVERY, STEPS - 1, PROBE_EVERY):
         motion = far_path[k + 1] - far_path[k - 1]
