@@ -17,8 +17,9 @@ Pure numpy on surface samples of the links' exact collision geometry (no search 
 no object): about a second per hand (0.1-0.2 s a finger). The result is kept on disk under
 ``<cache root>/hand_pads/`` (:func:`grasp_apso.cache.cache_root`), keyed by everything it is
 computed from (the chain links' collision geometry, their poses along the closing, the palm
-normal, this module's settings and :data:`PROBE_VERSION`), so that a command-line run, a
-restarted node or a batch worker reads a hand's pads back instead of probing them again.
+normal, this module's settings, :data:`PROBE_VERSION` and the numpy and trimesh versions),
+so that a command-line run, a restarted node or a batch worker reads a hand's pads back
+instead of probing them again.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import hashlib
 import logging
 
 import numpy as np
+import trimesh
 
 from ...cache import cache_root, write_atomically
 from .cover_store import hash_geometry
@@ -137,7 +139,9 @@ def _key(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> s
     """sha256 of what :func:`_probe` computes from."""
     settings = (PROBE_RADII, PROBE_TILTS, STEPS, PROBE_EVERY, SPACING, MAX_SAMPLES, MIN_SHARE, MIN_HITS, CHUNK,
                 PLANAR, OFF_MIDDLE)
-    digest = hashlib.sha256(f"v{PROBE_VERSION};{settings!r};{links!r};{tip_link!r}".encode())
+    # trimesh draws the surface samples (numpy's generator): another version may draw others
+    versions = (np.__version__, trimesh.__version__)
+    digest = hashlib.sha256(f"v{PROBE_VERSION};{versions!r};{settings!r};{links!r};{tip_link!r}".encode())
     hash_geometry(digest, {l: hand.collision[l] for l in links})
     index = [hand.link_index(l) for l in links]
     digest.update(np.ascontiguousarray(poses[:, index], dtype=np.float64).tobytes())
