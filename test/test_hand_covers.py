@@ -4,7 +4,7 @@ some sphere, and points spread over the spheres must lie at most 2 mm outside th
 geometry (trimesh's signed distance). CI covers the Allegro-like URDF hand (boxes, cylinders
 and meshes) and the Shadow hand (MJCF capsules and meshes); ``-m slow`` every test hand.
 Covers are built once per machine (kept on disk): the tests use a folder of their own so
-that they build them."""
+that they build them. The probed pads are kept on disk the same way (the last test)."""
 
 from __future__ import annotations
 
