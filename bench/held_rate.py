@@ -440,15 +440,11 @@ def summarise(rows: list[dict]) -> dict:
         out[f"best_held_by_{key}"] = sum(best_by(r["candidates"], key)["held"] for r in planned)
     robust = [c for c in cands if c["robust_epsilon"] > 0.0]
     out["robust_candidates"], out["robust_candidates_held"] = len(robust), sum(c["held"] for c in robust)
-    if cands and all("lift_held" in c for c in cands):
-        out["lift_best_held"] = sum(r["candidates"][0]["lift_held"] for r in planned)
-        out["lift_candidates_held"] = sum(c["lift_held"] for c in cands)
-    if cands and all("dgb_held" in c for c in cands):
-        out["dgb_best_held"] = sum(r["candidates"][0]["dgb_held"] for r in planned)
-        out["dgb_candidates_held"] = sum(c["dgb_held"] for c in cands)
-    if cands and all("dgb_lift_held" in c for c in cands):
-        out["dgb_lift_best_held"] = sum(r["candidates"][0]["dgb_lift_held"] for r in planned)
-        out["dgb_lift_candidates_held"] = sum(c["dgb_lift_held"] for c in cands)
+    for check in ("lift", "dgb", "dgb_lift"):  # the other checks' verdicts, when recorded
+        key = f"{check}_held"
+        if cands and all(key in c for c in cands):
+            out[f"{check}_best_held"] = sum(r["candidates"][0][key] for r in planned)
+            out[f"{check}_candidates_held"] = sum(c[key] for c in cands)
     phases = [drop_phase(r["candidates"][0]) for r in planned]
     if any(phases):
         out["best_dropped_by_phase"] = {p: phases.count(p) for p in DROP_PHASES}

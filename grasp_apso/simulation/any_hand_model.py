@@ -373,8 +373,8 @@ def _add_scene(spec, scene, settings: SimulationSettings, priority: int) -> list
         return names
     for i, plane in enumerate(np.asarray(scene.planes, float).reshape(-1, 4)):
         point, quat = plane_frame(plane)
-        g = spec.worldbody.add_geom(name=f"{SCENE_GEOM_PREFIX}plane{i}", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=point, quat=quat,
-                                    size=[0.0, 0.0, 1.0])
+        g = spec.worldbody.add_geom(name=f"{SCENE_GEOM_PREFIX}plane{i}", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=point,
+                                    quat=quat, size=[0.0, 0.0, 1.0])
         _contact(g, settings, priority)
         names.append(g.name)
     for i, ob in enumerate(scene.obstacles):
