@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from grasp_apso.geometry import any_hand_fcl as fcl_api
-from grasp_apso.geometry.any_hand_approach import object_approach_margins
+from grasp_apso.geometry import any_hand_kernels as hk
+from grasp_apso.geometry.any_hand_approach import APPROACH_STEPS, CUTOFF, object_approach_margins
 from grasp_apso.geometry.any_hand_decoder import make_any_hand_model, root_poses
 from grasp_apso.geometry.hand_fcl import CONTACT_ZONE
 from grasp_apso.model.hands.load import load_hand
@@ -69,3 +70,46 @@ def test_deep_in_the_decoder_hits_in_python_fcl(sampled):
     deep = np.flatnonzero(margins < -DEEP)[:25]
     misses = [i for i in deep if not _fcl_hits(hand, apple, model, root[i], q_open[i])]
     assert len(misses) <= 1, (misses, margins[misses])
+
+
+def _each_retreat(model, rot, trans, q_open, backs) -> np.ndarray:
+    """The least clearance over the retreats, each measured on its own with no bound
+    skipped (``cutoff`` inf: every link and the palm looked into): (P,)."""
+    t, s = model.tables, model.sdf
+    grid = (s._values64, s._origin64, float(s.spacing))
+    approach = np.ascontiguousarray(rot @ t.basis[:, 2])
+    n_p, n_f, lmax = len(rot), t.n_fingers, t.finger_link.shape[1]
+    rows = np.array([(p, f) for p in range(n_p) for f in range(n_f)], dtype=np.int64)
+    best = np.full(n_p, np.inf)
+    for back in backs:
+        moved = np.ascontiguousarray(trans - back * approach)
+        link_clear = np.full((n_p, n_f, lmax), np.inf)
+        pad_pos, pad_gap = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
+        hk.finger_clearances(*grid, rot, moved, q_open, rows, model.kin, np.inf, link_clear, pad_pos, pad_gap)
+        palm = np.empty(n_p)
+        hk.palm_clearance(*grid, rot, moved, t.palm_groups, t.palm_pose, t.palm_bound, model.kin, np.inf, palm)
+        best = np.minimum(best, np.minimum(link_clear.min(axis=(1, 2)), palm))
+    return best
+
+
+@pytest.mark.parametrize("cutoff", [CUTOFF, 0.02])
+def test_the_bounds_the_approach_skips_change_no_clearance_below_the_cut(sampled, cutoff):
+    """The approach kernel skips a finger at a retreat by one bounding sphere of its links,
+    and links, groups and the palm by theirs: the least clearance it returns is the one
+    measured retreat by retreat with nothing skipped, exactly, wherever it is at most the
+    cut (the decoder's, and 20 mm), and above the cut wherever that one is. (Not without a
+    cut: beyond the distance grid, 47 mm off, a bound can read 0.1 mm above its spheres.)"""
+    _, _, model, root, q_open, _ = sampled
+    rot, trans = np.ascontiguousarray(root[:, :3, :3]), np.ascontiguousarray(root[:, :3, 3])
+    q_open = np.ascontiguousarray(q_open)
+    backs = np.ascontiguousarray([f * APPROACH for f in APPROACH_STEPS if f * APPROACH > CONTACT_ZONE])
+    expected = _each_retreat(model, rot, trans, q_open, backs)
+    got = np.empty(len(rot))
+    hk.approach_clearance(model.sdf._values64, model.sdf._origin64, float(model.sdf.spacing), rot, trans,
+                          np.ascontiguousarray(rot @ model.tables.basis[:, 2]), backs, q_open,
+                          model.tables.palm_groups, model.tables.palm_pose, model.tables.palm_bound, model.kin,
+                          cutoff, got)
+    below = expected <= cutoff
+    assert below.sum() >= 30, np.sort(expected)
+    np.testing.assert_array_equal(got[below], expected[below])
+    assert np.all(got[~below] > cutoff)

@@ -10,7 +10,10 @@ measures, for the open pre-shape moved back along the palm normal by each of
 :data:`APPROACH_STEPS` beyond :data:`.hand_fcl.CONTACT_ZONE`, the least clearance of the
 hand's collision spheres from the object (one compiled kernel, :func:`.any_hand_kernels.approach_clearance`:
 the fingers posed once for all the retreats, bounding spheres beyond the least clearance
-found so far skipped; measured 8x faster than a look-up per retreat, Shadow hand and mug).
+found so far skipped; measured 8x faster than a look-up per retreat, Shadow hand and mug;
+a whole finger skipped at a retreat by one sphere bounding its links: 4000 random particles,
+the mug, 196 -> 30 ms for the Shadow hand, 83 -> 26 ms for the paper hand's URDF, the same
+clearances below the cut).
 """
 
 from __future__ import annotations

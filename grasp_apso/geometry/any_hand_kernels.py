@@ -41,28 +41,44 @@ def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
 # indices into the kinematic tuple (see kin())
 _A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
 _GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS, _PADB = range(12, 31)
+_AS, _AC, _AV = range(31, 34)
 
 
 def kin(t) -> tuple:
-    """The kinematic tuple the kernels take, from a :class:`.any_hand_tables.HandTables`."""
+    """The kinematic tuple the kernels take, from a :class:`.any_hand_tables.HandTables`.
+
+    The coupling matrix ``full_a`` (m, n) also goes in by rows of its non-zero entries
+    (row k's are ``a_val[a_start[k]:a_start[k + 1]]`` at columns ``a_col``, in column
+    order): a full joint follows one or two actuated joints, and the forward kinematics
+    sums only those (the same sum: the zeros add nothing)."""
+    a = np.asarray(t.full_a, dtype=np.float64)
+    rows, cols = np.nonzero(a)  # row-major: each row's columns ascending
+    a_start = np.zeros(a.shape[0] + 1, dtype=np.int64)
+    np.add.at(a_start, rows + 1, 1)
+    a_start = np.cumsum(a_start)
     return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
             t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
             t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,
-            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body)
+            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body,
+            a_start, np.ascontiguousarray(cols, dtype=np.int64), np.ascontiguousarray(a[rows, cols]))
 
 
 @_inline
-def finger_poses(q, f, K, poses, tmp, local):
+def finger_poses(q, f, K, poses, tmp, local, moving_only=False):
     """Poses (root frame) of finger ``f``'s links at actuated positions q (n,) -> poses (Lmax, 4, 4).
 
     Written out on the tables' elements (no array views: a view per element costs more
     than the arithmetic): each link's constant pose composed onto its parent's, then each
     joint motion (revolute about an axis through an anchor, prismatic along an axis)
-    composed onto it. ``tmp`` and ``local`` are unused (kept for the callers)."""
-    full_a, full_b, pre, parent = K[_A], K[_B], K[_PRE], K[_PAR]
+    composed onto it. ``moving_only``: only the links the finger's closing moves (the
+    closing sweep: the others, and so their poses, stay as the last call at the sweep's
+    pre-shape left them). ``tmp`` and ``local`` are unused (kept for the callers)."""
+    full_b, pre, parent, mov = K[_B], K[_PRE], K[_PAR], K[_MOV]
+    a_start, a_col, a_val = K[_AS], K[_AC], K[_AV]
     m_start, m_count, m_kind, m_axis, m_anchor, m_index, m_ref = K[_MS], K[_MC], K[_MK], K[_MAX], K[_MAN], K[_MI], K[_MR]
-    nq = q.shape[0]
     for l in range(K[_NL][f]):
+        if moving_only and mov[f, l] == 0:
+            continue
         pl = parent[f, l]
         if pl < 0:
             for i in range(4):
@@ -84,8 +100,8 @@ def finger_poses(q, f, K, poses, tmp, local):
         for m in range(start, start + m_count[f, l]):
             k = m_index[m]
             value = full_b[k] - m_ref[m]
-            for j in range(nq):
-                value += full_a[k, j] * q[j]
+            for e in range(a_start[k], a_start[k + 1]):
+                value += a_val[e] * q[a_col[e]]
             apply_motion(poses, l, m_kind[m], m_axis[m, 0], m_axis[m, 1], m_axis[m, 2], m_anchor[m, 0],
                          m_anchor[m, 1], m_anchor[m, 2], value)
 
@@ -239,7 +255,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                 for k in range(1, coarse + 1):
                     sk = k / coarse
                     _set_closing(q, qp, f, K, sk)
-                    finger_poses(q, f, K, poses, tmp, local)
+                    finger_poses(q, f, K, poses, tmp, local, True)
                     if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc, c,
                                                     True)) <= 0.0:
                         hi = sk
@@ -252,7 +268,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     for _ in range(refine):
                         mid = 0.5 * (lo + hi)
                         _set_closing(q, qp, f, K, mid)
-                        finger_poses(q, f, K, poses, tmp, local)
+                        finger_poses(q, f, K, poses, tmp, local, True)
                         if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc,
                                                         c, True)) <= 0.0:
                             hi = mid
@@ -260,7 +276,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                             lo = mid
                     s = lo
             _set_closing(q, qp, f, K, s)
-            finger_poses(q, f, K, poses, tmp, local)
+            finger_poses(q, f, K, poses, tmp, local, True)
             _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, link_clear[p, f], c)
             pad_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, pad_pos[p, f])
             s_out[p, f] = s
@@ -390,6 +406,41 @@ def palm_clearance(values, origin, spacing, rot, trans, groups, group_pose, palm
         out[p] = _palm(values, origin, spacing, rot[p], trans[p], groups, group_pose, palm_bound, K, cutoff, c)
 
 
+@_inline
+def _finger_bound(poses, f, K, out):
+    """A sphere (root frame) enclosing the bounding spheres of finger f's links posed at
+    ``poses`` (Lmax, 4, 4): its centre the middle of their centres' box, into out (4,):
+    centre, radius. False when no link of the finger has collision geometry."""
+    lc, lr = K[_LC], K[_LR]
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    found = False
+    for l in range(K[_NL][f]):
+        if lr[f, l] < 0.0:
+            continue
+        found = True
+        x, y, z = lc[f, l, 0], lc[f, l, 1], lc[f, l, 2]
+        px = poses[l, 0, 0] * x + poses[l, 0, 1] * y + poses[l, 0, 2] * z + poses[l, 0, 3]
+        py = poses[l, 1, 0] * x + poses[l, 1, 1] * y + poses[l, 1, 2] * z + poses[l, 1, 3]
+        pz = poses[l, 2, 0] * x + poses[l, 2, 1] * y + poses[l, 2, 2] * z + poses[l, 2, 3]
+        lo0, lo1, lo2 = min(lo0, px), min(lo1, py), min(lo2, pz)
+        hi0, hi1, hi2 = max(hi0, px), max(hi1, py), max(hi2, pz)
+    if not found:
+        return False
+    out[0], out[1], out[2] = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
+    radius = 0.0
+    for l in range(K[_NL][f]):
+        if lr[f, l] < 0.0:
+            continue
+        x, y, z = lc[f, l, 0], lc[f, l, 1], lc[f, l, 2]
+        px = poses[l, 0, 0] * x + poses[l, 0, 1] * y + poses[l, 0, 2] * z + poses[l, 0, 3] - out[0]
+        py = poses[l, 1, 0] * x + poses[l, 1, 1] * y + poses[l, 1, 2] * z + poses[l, 1, 3] - out[1]
+        pz = poses[l, 2, 0] * x + poses[l, 2, 1] * y + poses[l, 2, 2] * z + poses[l, 2, 3] - out[2]
+        radius = max(radius, math.sqrt(px * px + py * py + pz * pz) + lr[f, l])
+    out[3] = radius
+    return True
+
+
 @_jit
 def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, groups, group_pose, palm_bound, K,
                        cutoff, out):
@@ -397,10 +448,14 @@ def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, 
     moved back along ``approach`` (P, 3) by each of ``backs`` (S,) m: its finger links'
     and palm's spheres, per particle into out (P,).
 
-    Each finger posed once for all the retreats; a link, group or the palm's bounding
-    sphere farther than the least clearance found so far (or than ``cutoff``) is not
-    looked into: the least clearance is exact when at most ``cutoff``, a lower bound above
-    it (as :func:`finger_clearances` and :func:`palm_clearance`)."""
+    Each finger posed once for all the retreats; a finger's, link's, group's or the palm's
+    bounding sphere farther than the least clearance found so far (or than ``cutoff``) is
+    not looked into: the least clearance is exact when at most ``cutoff``, a lower bound
+    above it (as :func:`finger_clearances` and :func:`palm_clearance`). The finger's
+    bounding sphere (:func:`_finger_bound`, posed once) is read less two grid spacings: it
+    encloses its links' bounding spheres, and the grid's trilinear value is within
+    sqrt(3)/2 spacings of the distance it samples at both centres, so a finger it skips has
+    every link's bound beyond the cut too: the result below the cut is the links' bounds'."""
     n_f, lmax = K[_NL].shape[0], K[_LR].shape[1]
     n_b = backs.shape[0]
     poses = np.empty((lmax, 4, 4))
@@ -408,8 +463,10 @@ def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, 
     local = np.empty((4, 4))
     lc = np.empty(lmax)
     c = np.empty(3)
+    bound = np.empty(4)
     moved = np.empty((n_b, 3))
     qp = np.empty(q.shape[1])
+    inv = 1.0 / spacing
     for p in range(rot.shape[0]):
         r = rot[p]
         for j in range(q.shape[1]):
@@ -420,7 +477,16 @@ def approach_clearance(values, origin, spacing, rot, trans, approach, backs, q, 
         best = np.inf
         for f in range(n_f):
             finger_poses(qp, f, K, poses, tmp, local)
+            if not _finger_bound(poses, f, K, bound):
+                continue  # no collision geometry on the finger
             for b in range(n_b):
+                for i in range(3):
+                    c[i] = r[i, 0] * bound[0] + r[i, 1] * bound[1] + r[i, 2] * bound[2] + moved[b, i]
+                d = _grid_distance(values, origin[0], origin[1], origin[2], inv, spacing, c[0], c[1], c[2]) \
+                    - bound[3] - 2.0 * spacing
+                if d > min(cutoff, best):
+                    best = min(best, d)
+                    continue
                 best = min(best, _finger_clearance(values, origin, spacing, r, moved[b], poses, f, K,
                                                    min(cutoff, best), lc, c))
         for b in range(n_b):
