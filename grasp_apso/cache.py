@@ -12,7 +12,9 @@ registry (:func:`cached`, :func:`named_cache`): keyed by the object's mesh hash 
 options the value depends on), bounded in entries and bytes by :data:`CACHE_LIMITS` (the
 one place for those bounds). No other module keeps a module-level cache of object data
 (``test/test_cache.py`` reads the sources to check it). Values that live on disk (the
-convex decompositions) are kept under :func:`cache_root`.
+convex decompositions, a hand's covers and pads, the objects' distance grids) are kept
+under :func:`cache_root`; :func:`disk_arrays` keeps a folder of arrays within its bytes
+in :data:`DISK_LIMITS`, the least recently used files removed first.
 
 :class:`PerThreadCache` keeps per-thread python-fcl objects (moved by ``setTransform``,
 so never shared between threads), at most a few per thread.
@@ -30,9 +32,9 @@ from typing import Any, Callable, Generic, Hashable, Mapping, TypeVar
 
 import numpy as np
 
-__all__ = ["BoundedCache", "CacheLimit", "CacheStats", "CACHE_LIMITS", "PerThreadCache", "approximate_nbytes",
-           "cache_root", "cache_stats", "cached", "clear_caches", "named_cache", "set_cache_root",
-           "write_atomically"]
+__all__ = ["BoundedCache", "CacheLimit", "CacheStats", "CACHE_LIMITS", "DISK_LIMITS", "PerThreadCache",
+           "approximate_nbytes", "cache_root", "cache_stats", "cached", "clear_caches", "disk_arrays", "named_cache",
+           "prune_folder", "set_cache_root", "write_atomically"]
 
 V = TypeVar("V")
 
@@ -210,6 +212,13 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "sim_model": CacheLimit(8, 256 * _MB),       # simulation.any_hand_model: (mesh hash, hand, scene, settings)
 }
 
+#: Bytes each folder of :func:`disk_arrays` keeps under the cache root. An object's signed
+#: distance grid is 240,000 float64 nodes (about 2 MB) for the default node budget: 256
+#: objects, so that a batch over many meshes cannot fill the disk.
+DISK_LIMITS: Mapping[str, int] = {
+    "sdf_grids": 512 * _MB,  # geometry.sdf: (mesh hash, grid options, code and library versions)
+}
+
 _REGISTRY: dict[str, BoundedCache] = {}
 _REGISTRY_LOCK = threading.Lock()
 
@@ -312,3 +321,73 @@ def cache_root() -> Path:
     if os.environ.get("XDG_CACHE_HOME"):
         return Path(os.environ["XDG_CACHE_HOME"]).expanduser() / "grasp_apso"
     return Path.home() / ".cache" / "grasp_apso"
+
+
+def disk_arrays(folder: str, key: str, build: Callable[[], Mapping[str, np.ndarray]],
+                check: Callable[[Mapping[str, np.ndarray]], bool] | None = None) -> dict[str, np.ndarray]:
+    """Named arrays kept on disk as ``<cache root>/<folder>/<key>.npz``: read back when there
+    (and ``check`` accepts them), its time of use refreshed; else ``build()``, written
+    atomically, and the folder pruned to :data:`DISK_LIMITS` ``[folder]`` bytes
+    (:func:`prune_folder`). An unreadable or refused file is built again; a folder that
+    cannot be written leaves the value built (logged, not an error).
+
+    Parameters
+    ----------
+    folder : str
+        A name of :data:`DISK_LIMITS` (KeyError otherwise).
+    key : str
+        The file's name: a digest of everything the arrays depend on.
+    build : callable() -> mapping of str to ndarray
+    check : callable(arrays) -> bool, optional
+        Validates arrays read back (shapes, finiteness).
+    """
+    import logging
+
+    limit = DISK_LIMITS[folder]
+    path = cache_root() / folder / f"{key}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {name: np.array(data[name]) for name in data.files}
+            if check is None or check(arrays):
+                try:
+                    os.utime(path)  # recently used: pruned last
+                except OSError:
+                    pass
+                return arrays
+        except (OSError, ValueError, KeyError, EOFError) as exc:
+            logging.getLogger(__name__).warning("ignoring unreadable cache file %s: %s", path, exc)
+    arrays = {name: np.asarray(value) for name, value in build().items()}
+    error = write_atomically(path, lambda handle: np.savez(handle, **arrays))
+    if error is not None:
+        logging.getLogger(__name__).warning("cannot write cache file %s: %s", path, error)
+    else:
+        prune_folder(path.parent, limit, keep=path)
+    return arrays
+
+
+def prune_folder(folder: Path, max_bytes: int, keep: Path | None = None) -> int:
+    """Remove the least recently used (oldest modification time) ``.npz`` files of
+    ``folder`` until the rest add up to at most ``max_bytes``; ``keep`` is never removed.
+    Files another process removes meanwhile are skipped. Returns the number removed."""
+    entries = []
+    for path in folder.glob("*.npz"):
+        try:
+            stat = path.stat()
+        except OSError:
+            continue
+        entries.append((stat.st_mtime, path, stat.st_size))
+    total = sum(size for _, _, size in entries)
+    removed = 0
+    for _, path, size in sorted(entries, key=lambda e: e[0]):
+        if total <= max_bytes:
+            break
+        if keep is not None and path == keep:
+            continue
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        total -= size
+        removed += 1
+    return removed

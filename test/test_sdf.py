@@ -234,3 +234,92 @@ def test_cache_returns_the_same_object_for_the_same_key(grids) -> None:
     grid_cache = named_cache("sdf_grid")
     assert len(grid_cache) <= CACHE_LIMITS["sdf_grid"].entries
     assert grid_cache.stats().nbytes <= CACHE_LIMITS["sdf_grid"].nbytes
+
+
+@pytest.fixture
+def disk_cache(tmp_path, monkeypatch):
+    """The disk caches in a fresh folder, the in-memory grids forgotten, and a count of the
+    grids built (a spy on :func:`build_sdf_grid`)."""
+    from grasp_apso import cache
+    from grasp_apso.geometry import sdf
+
+    built = []
+    real = sdf.build_sdf_grid
+
+    def spy(mesh, **kwargs):
+        built.append(kwargs)
+        return real(mesh, **kwargs)
+
+    monkeypatch.setattr(sdf, "build_sdf_grid", spy)
+    cache.set_cache_root(tmp_path)
+    cache.clear_caches("sdf_grid")
+    try:
+        yield tmp_path / "sdf_grids", built
+    finally:
+        cache.set_cache_root(None)
+        cache.clear_caches("sdf_grid")
+
+
+def test_grids_are_read_back_from_disk_and_built_again_when_the_mesh_changes(disk_cache):
+    """A new process (here: the in-memory cache forgotten) reads a mesh's grid back from the
+    disk, bit for bit, instead of building it; another mesh under the same key, other
+    options or an unreadable file build again."""
+    from grasp_apso.cache import clear_caches
+
+    folder, built = disk_cache
+    mesh, _ = MESHES["sphere"]
+    first = cached_sdf_grid(mesh, "a-key", **SMALL)
+    assert len(built) == 1 and len(list(folder.glob("*.npz"))) == 1
+    clear_caches("sdf_grid")
+    again = cached_sdf_grid(mesh, "a-key", **SMALL)
+    assert len(built) == 1  # read back, not built
+    np.testing.assert_array_equal(again.values, first.values)
+    np.testing.assert_array_equal(again.origin, first.origin)
+    assert again.spacing == first.spacing
+    assert not again.values.flags.writeable
+    p = np.array([[0.0, 0.0, R_SPHERE + 0.003], [0.01, 0.0, 0.0]])
+    np.testing.assert_array_equal(again.distance(p), first.distance(p))
+    # the same key with another mesh (in a new process), and other options: built, each in
+    # its own file
+    clear_caches("sdf_grid")
+    other = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
+    assert not np.allclose(cached_sdf_grid(other, "a-key", **SMALL).distance(p), first.distance(p))
+    cached_sdf_grid(mesh, "a-key", **{**SMALL, "seed": 1})
+    assert len(built) == 3 and len(list(folder.glob("*.npz"))) == 3
+    # an unreadable file is built again and replaced
+    clear_caches("sdf_grid")
+    for path in folder.glob("*.npz"):
+        path.write_bytes(b"not a zip")
+    np.testing.assert_array_equal(cached_sdf_grid(mesh, "a-key", **SMALL).values, first.values)
+    assert len(built) == 4
+
+
+def test_the_disk_grids_keep_within_their_bytes_the_least_recently_used_removed_first(disk_cache, monkeypatch):
+    """Past :data:`grasp_apso.cache.DISK_LIMITS`' bytes the folder loses its least recently
+    used grids: reading a grid makes it recent, so the one not read since goes first."""
+    import os
+
+    from grasp_apso import cache
+
+    folder, built = disk_cache
+    mesh, _ = MESHES["sphere"]
+
+    def new_file(**options):
+        before = set(folder.glob("*.npz"))
+        cached_sdf_grid(mesh, "k", **{**SMALL, **options})
+        (path,) = set(folder.glob("*.npz")) - before
+        return path
+
+    first = new_file()
+    monkeypatch.setitem(cache.DISK_LIMITS, "sdf_grids", int(2.5 * first.stat().st_size))  # two grids
+    second = new_file(seed=1)
+    # the order of use made unambiguous whatever the file system's time resolution
+    os.utime(first, (1e9, 1e9))
+    os.utime(second, (1e9 + 100, 1e9 + 100))
+    cache.clear_caches("sdf_grid")
+    cached_sdf_grid(mesh, "k", **SMALL)  # the first read back: now the most recent
+    assert len(built) == 2 and first.stat().st_mtime > 1e9 + 100
+    third = new_file(seed=2)
+    assert len(built) == 3
+    assert sorted(folder.glob("*.npz")) == sorted([first, third])  # the second, least recently used, went
+    assert sum(q.stat().st_size for q in folder.glob("*.npz")) <= cache.DISK_LIMITS["sdf_grids"]

@@ -18,21 +18,30 @@ Building the grid (:func:`build_sdf_grid`):
 Outside the grid box, the distance is the value at the nearest box point plus the
 distance to the box, an over-estimate that only matters far from the object, where
 nothing is decided. Negative values are inside the object. Grids are cached by mesh hash
-(:func:`cached_sdf_grid`).
+(:func:`cached_sdf_grid`): in memory, and on disk under ``<cache root>/sdf_grids/`` so that a
+new process (a command-line run, a batch worker, a restarted node) reads a mesh's grid
+back instead of building it again.
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import scipy
 import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..cache import cached
+from ..cache import cached, disk_arrays
 from . import kernels
+
+#: Bump when :func:`build_sdf_grid` returns other values for the same input (the grids kept
+#: on disk are keyed by it).
+SDF_GRID_VERSION = 1
+
 
 @dataclass(frozen=True)
 class SignedDistanceGrid:
@@ -282,6 +291,39 @@ def build_sdf_grid(
 
 def cached_sdf_grid(mesh: trimesh.Trimesh, key: str, **kwargs) -> SignedDistanceGrid:
     """:func:`build_sdf_grid` memoised by ``key`` (the mesh hash) and the options, in the
-    named cache ``"sdf_grid"`` (:mod:`grasp_apso.cache`, bounded in entries and bytes)."""
+    named cache ``"sdf_grid"`` (:mod:`grasp_apso.cache`, bounded in entries and bytes), and
+    on disk (:func:`grasp_apso.cache.disk_arrays`, folder ``sdf_grids``, bounded in bytes):
+    the file's name is a digest of the key, the mesh's vertices and faces, the options,
+    :data:`SDF_GRID_VERSION` and the versions of numpy, scipy and trimesh (which sample the
+    surface and find the nearest samples), so a changed mesh, option or library never reads
+    a stale grid."""
     cache_key = (key, tuple(sorted(kwargs.items())))
-    return cached("sdf_grid", cache_key, lambda: build_sdf_grid(mesh, **kwargs))
+    return cached("sdf_grid", cache_key, lambda: _grid_from_disk(mesh, key, kwargs))
+
+
+def _grid_from_disk(mesh: trimesh.Trimesh, key: str, kwargs: dict) -> SignedDistanceGrid:
+    """The grid of ``mesh`` with ``kwargs`` read from the disk cache, or built and kept there."""
+    digest = hashlib.sha256(
+        f"v{SDF_GRID_VERSION};{key};{sorted(kwargs.items())!r};numpy {np.__version__};scipy {scipy.__version__};"
+        f"trimesh {trimesh.__version__}".encode())
+    # The mesh's own arrays too (a millisecond against the build's tenths of a second): a
+    # caller's key that is not the mesh's content can never read another mesh's grid.
+    digest.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
+    digest.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
+
+    def build() -> dict[str, np.ndarray]:
+        grid = build_sdf_grid(mesh, **kwargs)
+        return {"origin": grid.origin, "spacing": np.array([grid.spacing]), "values": grid.values}
+
+    def check(arrays) -> bool:
+        values = arrays.get("values")
+        return (values is not None and values.ndim == 3 and min(values.shape) >= 2
+                and np.shape(arrays.get("origin")) == (3,) and np.shape(arrays.get("spacing")) == (1,)
+                and float(arrays["spacing"][0]) > 0 and bool(np.isfinite(values).all()))
+
+    arrays = disk_arrays("sdf_grids", digest.hexdigest(), build, check)
+    values = np.ascontiguousarray(arrays["values"], dtype=np.float64)
+    origin = np.ascontiguousarray(arrays["origin"], dtype=np.float64)
+    values.flags.writeable = False
+    origin.flags.writeable = False
+    return SignedDistanceGrid(origin=origin, spacing=float(arrays["spacing"][0]), values=values)
