@@ -101,3 +101,31 @@ def test_compiled_scene_distance_matches_the_scene():
     got = distances(points, packed_scene(scene))
     np.testing.assert_allclose(got, scene.signed_distance(points), atol=1e-12)
     assert (got < 0).sum() > 50  # some points inside the solids
+
+
+@pytest.mark.parametrize("name", ["shadow", "inspire", "allegro_like"])
+def test_the_links_a_closing_does_not_move_keep_their_poses_along_it(hands, name):
+    """The closing sweep poses only the links the tables mark as moved by the finger's
+    closing (``HandTables.moving``): every other link of the finger keeps its pose from the
+    pre-shape to the closing limits (seeded random pre-shapes, couplings included), and the
+    marked ones do move."""
+    hand = hands[name]
+    t = hand_tables(hand)
+    rng = np.random.default_rng(4)
+    q0 = rng.uniform(hand.lower, hand.upper, (30, hand.n_joints))
+    lmax = t.finger_link.shape[1]
+    moved_any = np.zeros((t.n_fingers, lmax), dtype=bool)
+    for f in range(t.n_fingers):
+        closed = q0.copy()
+        for k in range(int(t.j_count[f])):
+            if not np.isnan(t.j_target[f, k]):
+                closed[:, t.j_index[f, k]] = t.j_target[f, k]
+        before, after = (np.empty((len(q0), t.n_fingers, lmax, 4, 4)) for _ in range(2))
+        hk.link_poses(np.ascontiguousarray(q0), hk.kin(t), before)
+        hk.link_poses(np.ascontiguousarray(closed), hk.kin(t), after)
+        for l in range(int(t.n_links[f])):
+            same = np.abs(after[:, f, l] - before[:, f, l]).max(axis=(1, 2)) <= 1e-12
+            if not t.moving[f, l]:
+                assert same.all(), (f, l)
+            moved_any[f, l] = not same.all()
+    assert np.array_equal(moved_any[:, :], t.moving.astype(bool))
