@@ -202,9 +202,9 @@ TUNABLES: tuple[Tunable, ...] = (
     _t("grasp_database", str, "", "Path of a grasp database written by grasp_apso_batch: requests "
        "for a stored object and hand are answered from it when a stored grasp survives the "
        "request's scene; empty = none.", scope="node", read_only=True),
-    _t("cache_directory", str, "", "Folder of the on-disk caches (convex decompositions); empty = "
-       "$GRASP_APSO_CACHE, else $XDG_CACHE_HOME/grasp_apso, else ~/.cache/grasp_apso.", scope="node",
-       read_only=True),
+    _t("cache_directory", str, "", "Folder of the on-disk caches (convex decompositions, a hand's sphere covers "
+       "and pads, objects' distance grids); empty = $GRASP_APSO_CACHE, else $XDG_CACHE_HOME/grasp_apso, else "
+       "~/.cache/grasp_apso.", scope="node", read_only=True),
     _t("plan_timeout", float, 60.0, "Seconds a request may spend in the worker (reading, validation, "
        "preparation, planning); it is answered 'timed out' naming the stage. 0 = no limit.",
        0.0, 86400.0, unit="s", scope="node"),
