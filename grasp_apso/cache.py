@@ -214,9 +214,11 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
 
 #: Bytes each folder of :func:`disk_arrays` keeps under the cache root. An object's signed
 #: distance grid is 240,000 float64 nodes (about 2 MB) for the default node budget: 256
-#: objects, so that a batch over many meshes cannot fill the disk.
+#: objects, so that a batch over many meshes cannot fill the disk; a probed pad is one
+#: point (tens of thousands of fingers).
 DISK_LIMITS: Mapping[str, int] = {
     "sdf_grids": 512 * _MB,  # geometry.sdf: (mesh hash, grid options, code and library versions)
+    "hand_pads": 16 * _MB,   # model.hands.pad_probe: a finger's probed pad, a few hundred bytes
 }
 
 _REGISTRY: dict[str, BoundedCache] = {}

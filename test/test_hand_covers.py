@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasp_apso.cache import clear_caches
+from grasp_apso.cache import cache_root, clear_caches
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.hands.spheres import MAX_STRAY
 from hand_files import HANDS, installed_hand, write_allegro_like
@@ -107,7 +107,7 @@ def test_pads_are_read_back_from_disk_and_probed_again_when_the_hand_changes(tmp
     # every finger probed (this hand's fingers are derived twice: again with its tendons'
     # couplings moved to the edge of their play, which moves four fingers' closing)
     assert set(probed) == {f.tip_link for f in first.fingers} and len(first.fingers) == 5
-    assert len(list(pad_probe.cache_root().glob("hand_pads/*.npz"))) == len(probed)
+    assert len(list(cache_root().glob("hand_pads/*.npz"))) == len(probed)
     clear_caches()
     probed.clear()
     second = load_hand(installed_hand("shadow"))

@@ -53,9 +53,7 @@ def kin(t) -> tuple:
     sums only those (the same sum: the zeros add nothing)."""
     a = np.asarray(t.full_a, dtype=np.float64)
     rows, cols = np.nonzero(a)  # row-major: each row's columns ascending
-    a_start = np.zeros(a.shape[0] + 1, dtype=np.int64)
-    np.add.at(a_start, rows + 1, 1)
-    a_start = np.cumsum(a_start)
+    a_start = np.concatenate([[0], np.cumsum(np.count_nonzero(a, axis=1))]).astype(np.int64)
     return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
             t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
             t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,

@@ -15,7 +15,7 @@ the point of its surface nearest the mean of its first-touch points.
 
 Pure numpy on surface samples of the links' exact collision geometry (no search kernels,
 no object): about a second per hand (0.1-0.2 s a finger). The result is kept on disk under
-``<cache root>/hand_pads/`` (:func:`grasp_apso.cache.cache_root`), keyed by everything it is
+``<cache root>/hand_pads/`` (:func:`grasp_apso.cache.disk_arrays`), keyed by everything it is
 computed from (the chain links' collision geometry, their poses along the closing, the palm
 normal, this module's settings, :data:`PROBE_VERSION` and the numpy and trimesh versions),
 so that a command-line run, a restarted node or a batch worker reads a hand's pads back
@@ -25,12 +25,11 @@ instead of probing them again.
 from __future__ import annotations
 
 import hashlib
-import logging
 
 import numpy as np
 import trimesh
 
-from ...cache import cache_root, write_atomically
+from ...cache import disk_arrays
 from .cover_store import hash_geometry
 from .pads import outer_surface_samples
 
@@ -40,7 +39,6 @@ __all__ = ["probe_pad", "PROBE_RADII", "PROBE_VERSION"]
 #: the same input.
 PROBE_VERSION = 1
 
-_log = logging.getLogger(__name__)
 
 #: Probe sphere radii (m): small, middling and large objects.
 PROBE_RADII = (0.015, 0.03, 0.06)
@@ -124,15 +122,18 @@ def probe_pad(hand, tip_link: str, joints, closing, palm_normal) -> np.ndarray |
     links = [l for l in path[path.index(hand.root_link) + 1:] if hand.collision.get(l)]
     poses = hand.link_transforms_batch(_closing_path(hand, joints, closing))  # (S, L, 4, 4)
     normal = np.asarray(palm_normal, float) / np.linalg.norm(palm_normal)
-    file = cache_root() / "hand_pads" / f"{_key(hand, links, tip_link, poses, normal)}.npz"
-    stored = _read(file)
-    if stored is not None:
-        return stored if len(stored) else None
-    pad = _probe(hand, links, tip_link, poses, normal)
-    error = write_atomically(file, lambda handle: np.savez(handle, pad=np.zeros(0) if pad is None else pad))
-    if error is not None:
-        _log.warning("cannot write pad cache %s: %s", file, error)
-    return pad
+
+    def probe() -> dict[str, np.ndarray]:
+        pad = _probe(hand, links, tip_link, poses, normal)
+        return {"pad": np.zeros(0) if pad is None else pad}  # (0,): the probe did not tell
+
+    def check(arrays) -> bool:
+        pad = arrays.get("pad")
+        return pad is not None and pad.shape in ((0,), (3,)) and bool(np.all(np.isfinite(pad)))
+
+    pad = np.asarray(disk_arrays("hand_pads", _key(hand, links, tip_link, poses, normal), probe, check)["pad"],
+                     dtype=float)
+    return pad if len(pad) else None
 
 
 def _key(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> str:
@@ -147,20 +148,6 @@ def _key(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> s
     digest.update(np.ascontiguousarray(poses[:, index], dtype=np.float64).tobytes())
     digest.update(np.ascontiguousarray(normal, dtype=np.float64).tobytes())
     return digest.hexdigest()
-
-
-def _read(file) -> np.ndarray | None:
-    """The stored pad (3,), or (0,) for a probe that did not tell; None when not stored or
-    unreadable (then probed again)."""
-    if not file.is_file():
-        return None
-    try:
-        with np.load(file, allow_pickle=False) as data:
-            pad = np.array(data["pad"], dtype=float)
-    except (OSError, KeyError, ValueError) as exc:
-        _log.warning("ignoring unreadable pad cache %s: %s", file, exc)
-        return None
-    return pad if pad.shape in ((0,), (3,)) and np.all(np.isfinite(pad)) else None
 
 
 def _probe(hand, links, tip_link: str, poses: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
