@@ -202,6 +202,7 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
     "sdf_grid": CacheLimit(32, 256 * _MB),       # geometry.sdf: (mesh hash, grid options)
     "normal_spread": CacheLimit(32, 256 * _MB),  # geometry.normal_spread: (mesh hash, options, radius)
     "mesh_bvh": CacheLimit(32, 128 * _MB),       # geometry.collision: mesh hash
+    "face_boxes": CacheLimit(32, 64 * _MB),      # quality.robustness: mesh hash (triangles and their boxes)
     "convex_parts": CacheLimit(32, 64 * _MB),    # simulation.convex: (mesh hash, decomposition key)
     "hand_model": CacheLimit(16, 1024 * _MB),
     "hand_tables": CacheLimit(16, 256 * _MB),    # geometry.any_hand_tables: hand source hash

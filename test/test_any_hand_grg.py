@@ -130,3 +130,37 @@ def test_a_thumb_joint_that_moves_another_finger_is_drawn_as_the_thumbs(tmp_path
     low, high = hand.lower[j], hand.upper[j]
     # anywhere in its range (near the open value: within 15 % of the range either side)
     assert q.min() < low + 0.05 * (high - low) and q.max() > high - 0.05 * (high - low)
+
+
+def _same(a, b, skip: tuple[str, ...] = ()) -> None:
+    for name in a.__dataclass_fields__:
+        if name not in skip:
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_a_particle_decodes_alone_and_the_shortcuts_of_its_variants_change_nothing(setup):
+    """What GRG's rounds and the selection's pad alignment rely on: a particle's decoding is
+    the same in any batch; the palm clearance of a decoded wrist given back is used as it
+    is; a decoding without the scene check differs only in the scene margin; the strict
+    reading (``pads_on``) changes only the grasps with a contact whose pad point is off the
+    surface."""
+    from grasp_apso.geometry.any_hand_decoder import PAD_ON
+    from grasp_apso.search.any_hand_grg import sample_any
+
+    model, shape = setup
+    x = sample_any(model, shape, 300, np.random.default_rng(5))
+    d = decode_any(model, x)
+    assert d.scene_margin is not None and (d.n_contacts >= 2).sum() > 30
+    order = np.random.default_rng(6).permutation(len(x))
+    _same(decode_any(model, x[order]), d.take(order))
+    _same(decode_any(model, x, palm=d.palm_clearance), d)
+    # the palm given is the one used (a palm deep in the object: nothing legal)
+    assert not decode_any(model, x, palm=np.full(len(x), -1.0)).legal(model.settings.max_penetration).any()
+    bare = decode_any(model, x, scene_check=False)
+    assert bare.scene_margin is None
+    _same(bare, d, skip=("scene_margin",))
+    strict = decode_any(model, x, pads_on=True)
+    off = (d.contact & (d.pad_offset > PAD_ON)).any(axis=1)
+    assert off.any() and (~off).any()
+    _same(strict.take(np.flatnonzero(~off)), d.take(np.flatnonzero(~off)))
+    assert (strict.contact[off] != d.contact[off]).any(axis=1).all()

@@ -248,10 +248,15 @@ def _pad_facing(model: AnyHandModel, points: np.ndarray, centers: np.ndarray) ->
 
 
 def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None,
-               pads_on: bool = False) -> AnyDecoded:
+               pads_on: bool = False, scene_check: bool = True, palm: np.ndarray | None = None) -> AnyDecoded:
     """Decode particles x (P, D) (clamped to the bounds) into grasps; see the module docstring.
     ``pads_on``: a contact also needs its pad point within :data:`PAD_ON` of the surface (the
-    final selection's strict reading; the search's contacts are the pad spheres')."""
+    final selection's strict reading; the search's contacts are the pad spheres').
+    ``scene_check`` False: no scene margins (``scene_margin`` None), for trial decodings
+    that read only the fingers' contacts and legality. ``palm`` (P,) m: the particles' palm
+    clearance when known (it depends on the wrist and the standoff alone: variants of
+    decoded particles that change only joints), else computed. Each particle's decoding is
+    its own (the same in any batch)."""
     lay, t, s = model.layout, model.tables, model.settings
     x = np.asarray(x, dtype=float)
     if x.ndim != 2 or x.shape[1] != lay.dims:
@@ -304,8 +309,13 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
         link_contact[:] = False
     poses = np.empty((n_p, n_f, lmax, 4, 4))
     hk.link_poses(q, model.kin, poses)
-    palm = np.empty(n_p)
-    hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, t.palm_bound, model.kin, CUTOFF, palm)
+    if palm is None:
+        palm = np.empty(n_p)
+        hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, t.palm_bound, model.kin, CUTOFF, palm)
+    else:
+        palm = np.array(palm, dtype=float)
+        if palm.shape != (n_p,):
+            raise ValueError(f"palm: expected ({n_p},), got {palm.shape}")
     # Overlaps between fingers only where they can decide (two contacts, nothing else
     # illegal): the others are inactive whatever their fingers do.
     collide = np.zeros((n_p, n_f), dtype=bool)
@@ -322,7 +332,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     wrist = root.copy()
     wrist[:, :3, :3] = rot @ t.basis
     margin = None
-    if model.scene is not None:
+    if model.scene is not None and scene_check:
         # Only the particles otherwise legal with two contacts (the others are inactive or
         # regenerated whatever the scene): the rest read 0 (not checked).
         margin = np.zeros(n_p)

@@ -31,6 +31,7 @@ import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
 
+from ..cache import cached
 from .measures import hull_epsilon
 
 __all__ = ["normal_uncertainty", "robust_epsilon", "robustness_score", "DEFAULT_RADIUS",
@@ -51,6 +52,16 @@ def _points(value: ArrayLike, name: str) -> NDArray[np.float64]:
     if arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
         raise ValueError(f"{name}: expected finite (k, 3), got shape {arr.shape}")
     return arr
+
+
+def _face_boxes(obj) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The triangles of ``obj.mesh`` (F, 3, 3) and their axis-aligned boxes' corners (F, 3),
+    (F, 3), m: kept per mesh hash (a third of a call's time on a 3000-face mesh)."""
+    def build():
+        tri = np.array(obj.mesh.triangles, dtype=np.float64)
+        return tri, tri.min(axis=1), tri.max(axis=1)
+    key = getattr(obj, "mesh_hash", None)
+    return build() if key is None else cached("face_boxes", key, build)
 
 
 def normal_uncertainty(obj, points: ArrayLike, radius: float = DEFAULT_RADIUS) -> NDArray[np.float64]:
@@ -91,10 +102,9 @@ def normal_uncertainty(obj, points: ArrayLike, radius: float = DEFAULT_RADIUS) -
     if not (isinstance(radius, (int, float)) and math.isfinite(radius) and radius > 0):
         raise ValueError(f"radius: expected a positive length in m, got {radius!r}")
     mesh = obj.mesh
-    tri = np.asarray(mesh.triangles)                     # (F, 3, 3)
+    tri, lo, hi = _face_boxes(obj)                       # (F, 3, 3), (F, 3), (F, 3)
     normals = np.asarray(mesh.face_normals)              # (F, 3)
     areas = np.asarray(mesh.area_faces)                  # (F,)
-    lo, hi = tri.min(axis=1), tri.max(axis=1)            # (F, 3)
     # the closest triangle of each contact (for the thin-wall filter)
     _, _, closest_face = trimesh.proximity.closest_point(mesh, pts)
     n0 = normals[closest_face]                           # (k, 3)

@@ -206,8 +206,12 @@ class AnyHandGenerator:
         good = np.zeros(len(x), dtype=bool)
         near = np.zeros(len(x), dtype=bool)
         rows = np.arange(len(x))
+        palm = None  # (n,) from the first round: the rounds change only joints
         for round_ in range(REGENERATE_ROUNDS + 1):
-            decoded = decode_any(self.model, x[rows], self.wrist_position)
+            decoded = decode_any(self.model, x[rows], self.wrist_position,
+                                 palm=None if palm is None else palm[rows])
+            if palm is None:
+                palm = decoded.palm_clearance
             self.evaluations += len(rows)
             # Legal but for the scene counts too (the swarm's fitness guides it out of the
             # scene; the final selection requires it clear): scene-clear ones come first.

@@ -200,7 +200,9 @@ def align_pads(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
         steps[:, :, lay.joints] += np.asarray(FRACTIONS)[:, None, None] * step[None]
         trial = np.concatenate([np.clip(steps, t.lower, t.upper), _samples(model, x[rows], samples, rng)])
         n_try = len(trial)
-        dt = decode_any(model, trial.reshape(-1, lay.dims), wrist_position)
+        # the trials are scored by their fingers alone: no scene margins
+        dt = decode_any(model, trial.reshape(-1, lay.dims), wrist_position, scene_check=False,
+                        palm=np.tile(sub.palm_clearance, n_try))
         # A finger changes only to bring its pad point nearer the surface with its pad
         # sphere well seated (not at the edge of the contact tolerance).
         ok = (np.tile(todo[rows], (n_try, 1)) & dt.contact & ~dt.finger_illegal(s.max_penetration)
@@ -225,7 +227,7 @@ def align_pads(model: AnyHandModel, x: np.ndarray, rng: np.random.Generator,
             if not changed.any():
                 break
             at = np.flatnonzero(changed)
-            dv = decode_any(model, variant[at], wrist_position)
+            dv = decode_any(model, variant[at], wrist_position, palm=sub.palm_clearance[at])
             ok = _no_worse(dv, sub.take(at), s.max_penetration)
             x[rows[at[ok]]] = variant[at[ok]]
             d = _replace_rows(d, rows[at[ok]], dv.take(np.flatnonzero(ok)))
@@ -297,8 +299,13 @@ def final_decodings(model: AnyHandModel, problem, x: np.ndarray, wanted: int) ->
     fitness, _ = problem.fitness(d)
     x, d = align_closable(model, x, problem.generator.rng, wrist, limit=ALIGNED_PER_GRASP * wanted,
                           priority=fitness, decoded=d)
-    strict = decode_any(model, x, wrist, pads_on=True)
-    other = np.flatnonzero((strict.n_contacts >= 2) & (strict.contact != d.contact).any(axis=1))
+    # Only a grasp with a contact whose pad point is off the surface reads otherwise strictly
+    # (d is x's decoding, and each particle decodes alone).
+    off = np.flatnonzero((d.contact & (d.pad_offset > PAD_ON)).any(axis=1))
+    if not len(off):
+        return d
+    strict = decode_any(model, x[off], wrist, pads_on=True, palm=d.palm_clearance[off])
+    other = np.flatnonzero(strict.n_contacts >= 2)
     return _concat(d, strict.take(other)) if len(other) else d
 
 
