@@ -307,8 +307,6 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     link_contact = (non_pad.min(axis=2) <= s.link_contact_tolerance) & ~blocked
     if s.allow_link_contacts:
         link_contact[:] = False
-    poses = np.empty((n_p, n_f, lmax, 4, 4))
-    hk.link_poses(q, model.kin, poses)
     if palm is None:
         palm = np.empty(n_p)
         hk.palm_clearance(*grid, rot, trans, t.palm_groups, t.palm_pose, t.palm_bound, model.kin, CUTOFF, palm)
@@ -321,10 +319,13 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     collide = np.zeros((n_p, n_f), dtype=bool)
     check = (contact.sum(axis=1) >= 2) & (palm >= -s.max_penetration) & ~(
         blocked | link_contact | (penetration > s.max_penetration)).any(axis=1)
-    if check.any():
-        out = np.empty((int(check.sum()), n_f), dtype=bool)
-        hk.finger_overlaps(np.ascontiguousarray(poses[check]), t.pairs, model.kin,
-                           float(s.finger_overlap) + COVER_OVERLAP, out)
+    # The grasp's link poses only where they are read: the overlaps and the scene margins
+    # (whose particles are among these).
+    poses = np.empty((int(check.sum()), n_f, lmax, 4, 4))
+    if len(poses):
+        hk.link_poses(np.ascontiguousarray(q[check]), model.kin, poses)
+        out = np.empty((len(poses), n_f), dtype=bool)
+        hk.finger_overlaps(poses, t.pairs, model.kin, float(s.finger_overlap) + COVER_OVERLAP, out)
         collide[check] = out
     points, normals = model.sdf.closest_surface_point(pad_pos)
     closed = x.copy()
@@ -342,7 +343,7 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
             open_poses = np.empty((int(ok.sum()),) + poses.shape[1:])
             hk.link_poses(np.ascontiguousarray(q0[ok]), model.kin, open_poses)
             margin[ok] = np.minimum(
-                scene_margins(model, root[ok], np.ascontiguousarray(poses[ok]), open_poses),
+                scene_margins(model, root[ok], np.ascontiguousarray(poses[ok[check]]), open_poses),
                 object_approach_margins(model, rot[ok], trans[ok], q0[ok], model.approach_distance))
     return AnyDecoded(closed=closed, q_pre=q0, q=q, root=root, wrist=wrist, contact=contact,
                       contact_points=points, contact_normals=normals, tip_gap=tip_gap, pad_points=pad_pos,
