@@ -34,7 +34,7 @@ import numpy as np
 
 __all__ = ["BoundedCache", "CacheLimit", "CacheStats", "CACHE_LIMITS", "DISK_LIMITS", "PerThreadCache",
            "approximate_nbytes", "cache_root", "cache_stats", "cached", "clear_caches", "disk_arrays", "named_cache",
-           "prune_folder", "set_cache_root", "write_atomically"]
+           "prune_folder", "set_cache_root", "touch", "write_atomically"]
 
 V = TypeVar("V")
 
@@ -216,10 +216,13 @@ CACHE_LIMITS: Mapping[str, CacheLimit] = {
 #: Bytes each folder of :func:`disk_arrays` keeps under the cache root. An object's signed
 #: distance grid is 240,000 float64 nodes (about 2 MB) for the default node budget: 256
 #: objects, so that a batch over many meshes cannot fill the disk; a probed pad is one
-#: point (tens of thousands of fingers).
+#: point (tens of thousands of fingers); a hand's covers some hundreds of hands.
 DISK_LIMITS: Mapping[str, int] = {
     "sdf_grids": 512 * _MB,  # geometry.sdf: (mesh hash, grid options, code and library versions)
     "hand_pads": 16 * _MB,   # model.hands.pad_probe: a finger's probed pad, a few hundred bytes
+    "hand_covers": 128 * _MB,  # model.hands.cover_store: a hand's sphere covers, about 0.4 MB
+    "coacd": 64 * _MB,       # simulation.convex: an object's convex decomposition, a few kB to 100 kB
+    "sim_meshes": 256 * _MB,  # simulation.any_hand_model: STL copies of hand meshes MuJoCo cannot read
 }
 
 _REGISTRY: dict[str, BoundedCache] = {}
@@ -353,10 +356,7 @@ def disk_arrays(folder: str, key: str, build: Callable[[], Mapping[str, np.ndarr
             with np.load(path, allow_pickle=False) as data:
                 arrays = {name: np.array(data[name]) for name in data.files}
             if check is None or check(arrays):
-                try:
-                    os.utime(path)  # recently used: pruned last
-                except OSError:
-                    pass
+                touch(path)
                 return arrays
         except (OSError, ValueError, KeyError, EOFError) as exc:
             logging.getLogger(__name__).warning("ignoring unreadable cache file %s: %s", path, exc)
@@ -369,12 +369,22 @@ def disk_arrays(folder: str, key: str, build: Callable[[], Mapping[str, np.ndarr
     return arrays
 
 
-def prune_folder(folder: Path, max_bytes: int, keep: Path | None = None) -> int:
-    """Remove the least recently used (oldest modification time) ``.npz`` files of
-    ``folder`` until the rest add up to at most ``max_bytes``; ``keep`` is never removed.
-    Files another process removes meanwhile are skipped. Returns the number removed."""
+def touch(path: Path) -> None:
+    """Mark a cache file as just used (:func:`prune_folder` removes the least recently
+    used first); a file another process removed meanwhile is left alone."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+def prune_folder(folder: Path, max_bytes: int, keep: Path | None = None, pattern: str = "*.npz") -> int:
+    """Remove the least recently used (oldest modification time) files of ``folder``
+    matching ``pattern`` until the rest add up to at most ``max_bytes``; ``keep`` is never
+    removed. Files another process removes meanwhile are skipped. Returns the number
+    removed."""
     entries = []
-    for path in folder.glob("*.npz"):
+    for path in folder.glob(pattern):
         try:
             stat = path.stat()
         except OSError:

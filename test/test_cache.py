@@ -190,3 +190,36 @@ def test_disk_cache_files_are_written_whole_or_not_at_all(tmp_path):
     blocked = tmp_path / "a_file"
     blocked.write_text("x")
     assert isinstance(write_atomically(blocked / "entry.npz", lambda handle: None), OSError)
+
+
+def test_every_disk_folder_is_bounded_and_a_reused_file_counts_as_recent(tmp_path, monkeypatch):
+    """The convex decompositions and the simulation's mesh copies are kept within their
+    bytes too (:data:`grasp_apso.cache.DISK_LIMITS`): past them the least recently used
+    files go, a file read back counts as used, and a folder's other kinds of file stay."""
+    import os
+
+    from grasp_apso import cache
+    from grasp_apso.cache import DISK_LIMITS, prune_folder
+    from grasp_apso.simulation import convex
+
+    assert {"sdf_grids", "hand_pads", "hand_covers", "coacd", "sim_meshes"} <= set(DISK_LIMITS)
+    folder = tmp_path / "coacd"
+    part = np.random.default_rng(0).normal(size=(40, 3))
+    paths = [folder / f"{name}.npz" for name in "abc"]
+    convex._write_disk(paths[0], convex.Decomposition((part,), "coacd"), 30.0)
+    size = paths[0].stat().st_size
+    monkeypatch.setitem(cache.DISK_LIMITS, "coacd", int(2.5 * size))  # two files
+    convex._write_disk(paths[1], convex.Decomposition((part,), "coacd"), 30.0)
+    os.utime(paths[0], (1e9, 1e9))
+    os.utime(paths[1], (1e9 + 100, 1e9 + 100))
+    assert convex._read_disk(paths[0], 30.0) is not None  # read back: now the most recent
+    convex._write_disk(paths[2], convex.Decomposition((part,), "coacd"), 30.0)
+    assert sorted(folder.glob("*.npz")) == sorted([paths[0], paths[2]])
+
+    meshes = tmp_path / "sim_meshes"
+    meshes.mkdir()
+    for i, name in enumerate(("old.stl", "new.stl", "grid.npz")):
+        (meshes / name).write_bytes(b"x" * 1000)
+        os.utime(meshes / name, (1e9 + i, 1e9 + i))
+    assert prune_folder(meshes, 1500, pattern="*.stl") == 1
+    assert sorted(p.name for p in meshes.iterdir()) == ["grid.npz", "new.stl"]

@@ -145,19 +145,22 @@ def _decodable_copy(path: Path) -> Path:
     """An STL copy of a collision mesh MuJoCo cannot decode, read as the hand loader reads
     it (units in metres), kept under the cache root by the file's content hash."""
     from .. import tunables
-    from ..cache import cache_root, write_atomically
+    from ..cache import DISK_LIMITS, cache_root, prune_folder, touch, write_atomically
     from ..model.hands.urdf_loader import read_collision_mesh
 
     if not path.is_file():
         return path  # MuJoCo names the missing file
     digest = hashlib.sha256(b"stl-v1;" + path.read_bytes()).hexdigest()
     out = cache_root() / "sim_meshes" / f"{digest}.stl"
-    if not out.is_file():
+    if out.is_file():
+        touch(out)
+    else:
         mesh = read_collision_mesh(path, f"simulation: mesh {path.name}", int(tunables.default("max_hand_file_bytes")))
         error = write_atomically(out, lambda handle: handle.write(mesh.export(file_type="stl")))
         if error is not None:
             raise SimulationError(f"simulation: MuJoCo reads no {path.suffix} mesh, and the STL copy of {path.name} "
                                   f"cannot be written under the cache root ({error})")
+        prune_folder(out.parent, DISK_LIMITS["sim_meshes"], keep=out, pattern="*.stl")
     return out
 
 

@@ -56,7 +56,7 @@ from typing import Callable
 import numpy as np
 import trimesh
 
-from ..cache import cache_root, clear_caches, named_cache, write_atomically
+from ..cache import DISK_LIMITS, cache_root, clear_caches, named_cache, prune_folder, touch, write_atomically
 from ..errors import InputError, SimulationError
 from ..tunables import default
 
@@ -221,9 +221,13 @@ def _read_disk(path: Path, timeout: float) -> Decomposition | None:
         _log.warning("ignoring unreadable convex-decomposition cache %s: %s", path, exc)
         return None
     if n == 0:
-        return Decomposition(None, method, note, bound) if bound >= timeout else None
+        if bound < timeout:
+            return None
+        touch(path)
+        return Decomposition(None, method, note, bound)
     if any(p.ndim != 2 or p.shape[1] != 3 or len(p) < 4 for p in parts):
         return None
+    touch(path)
     return Decomposition(parts, method, note)
 
 
@@ -234,6 +238,8 @@ def _write_disk(path: Path, found: Decomposition, timeout: float) -> None:
         timeout=np.array(float(timeout)), **{f"p{i}": p for i, p in enumerate(parts)}))
     if error is not None:
         _log.warning("cannot write convex-decomposition cache %s: %s", path, error)
+    else:
+        prune_folder(path.parent, DISK_LIMITS["coacd"], keep=path)
 
 
 # ------------------------------------------------------------------ the background runs

@@ -5,20 +5,19 @@ far more than reading its description: a restarted node, a batch worker or anoth
 process reads the covers back instead. The key is the content of the collision geometry
 itself (kind, size, placement and mesh arrays of every link), the cover's settings and
 :data:`COVER_VERSION`, so a changed mesh file or a changed algorithm never reads a stale
-cover. Files live under ``<cache root>/hand_covers/`` (:func:`grasp_apso.cache.cache_root`),
-written atomically; an unreadable file is ignored (and rebuilt).
+cover. Files live under ``<cache root>/hand_covers/`` (:func:`grasp_apso.cache.disk_arrays`:
+written atomically, an unreadable file built again, the folder kept within its bytes in
+:data:`grasp_apso.cache.DISK_LIMITS`).
 """
 
 from __future__ import annotations
 
 import hashlib
-import logging
-from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ...cache import cache_root, write_atomically
+from ...cache import disk_arrays
 from .geometry import LinkGeometry
 from .spheres import SphereCover
 
@@ -28,9 +27,6 @@ __all__ = ["COVER_VERSION", "cover_key", "covers_from_disk", "hash_geometry"]
 #: 2: a collision mesh's inward-facing inner shells (cavities) read outside again (covers of
 #: such meshes made before were wrong).
 COVER_VERSION = 2
-
-_log = logging.getLogger(__name__)
-
 
 def cover_key(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object]) -> str:
     """sha256 of every link's collision geometry and the cover settings."""
@@ -55,37 +51,23 @@ def hash_geometry(digest, collision: Mapping[str, Sequence[LinkGeometry]]) -> No
 def covers_from_disk(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object],
                      build: Callable[[str], SphereCover]) -> dict[str, SphereCover]:
     """The covers of every link: read from disk when this geometry was covered with these
-    ``settings`` before, else ``build(link)`` for each link and written to disk."""
-    path = cache_root() / "hand_covers" / f"{cover_key(collision, settings)}.npz"
-    stored = _read(path, collision)
-    if stored is not None:
-        return stored
-    covers = {link: build(link) for link in collision}
-    _write(path, covers)
-    return covers
+    ``settings`` before, else ``build(link)`` for each link and written to disk
+    (:func:`grasp_apso.cache.disk_arrays`, folder ``hand_covers``)."""
+    def arrays() -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {"links": np.array(list(collision), dtype=str)}
+        for i, link in enumerate(collision):
+            cover = build(link)
+            out[f"c{i}"], out[f"r{i}"], out[f"e{i}"] = cover.centers, cover.radii, cover.ends
+            out[f"s{i}"] = np.array([cover.max_stray, cover.uncovered, cover.tolerance])
+        return out
 
+    def check(stored: Mapping[str, np.ndarray]) -> bool:
+        links = [str(v) for v in stored["links"]]
+        return sorted(links) == sorted(collision) and all(
+            f"{k}{i}" in stored for i in range(len(links)) for k in "cres") and all(
+            stored[f"s{i}"].shape == (3,) for i in range(len(links)))
 
-def _read(path: Path, collision: Mapping[str, Sequence[LinkGeometry]]) -> dict[str, SphereCover] | None:
-    if not path.is_file():
-        return None
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            links = [str(v) for v in data["links"]]
-            if sorted(links) != sorted(collision):
-                return None
-            return {link: SphereCover(data[f"c{i}"], data[f"r{i}"], float(data[f"s{i}"][0]),
-                                      float(data[f"s{i}"][1]), float(data[f"s{i}"][2]), data[f"e{i}"])
-                    for i, link in enumerate(links)}
-    except (OSError, KeyError, ValueError, IndexError) as exc:
-        _log.warning("ignoring unreadable sphere-cover cache %s: %s", path, exc)
-        return None
-
-
-def _write(path: Path, covers: Mapping[str, SphereCover]) -> None:
-    arrays: dict[str, np.ndarray] = {"links": np.array(list(covers), dtype=str)}
-    for i, cover in enumerate(covers.values()):
-        arrays[f"c{i}"], arrays[f"r{i}"], arrays[f"e{i}"] = cover.centers, cover.radii, cover.ends
-        arrays[f"s{i}"] = np.array([cover.max_stray, cover.uncovered, cover.tolerance])
-    error = write_atomically(path, lambda handle: np.savez(handle, **arrays))
-    if error is not None:
-        _log.warning("cannot write sphere-cover cache %s: %s", path, error)
+    stored = disk_arrays("hand_covers", cover_key(collision, settings), arrays, check)
+    return {str(link): SphereCover(stored[f"c{i}"], stored[f"r{i}"], float(stored[f"s{i}"][0]),
+                                   float(stored[f"s{i}"][1]), float(stored[f"s{i}"][2]), stored[f"e{i}"])
+            for i, link in enumerate(stored["links"])}
