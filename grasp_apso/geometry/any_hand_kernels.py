@@ -39,26 +39,25 @@ def _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z):
     return value + outside
 
 # indices into the kinematic tuple (see kin())
-_A, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(12)
-_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS, _PADB = range(12, 31)
-_AS, _AC, _AV = range(31, 34)
+_AS, _AC, _AV, _B, _NL, _PAR, _PRE, _MS, _MC, _MK, _MAX, _MAN, _MI, _MR = range(14)
+_GS, _GC, _GRS, _GRC, _GRCEN, _GRR, _SC, _SR, _PADL, _PADC, _PADR, _JC, _JI, _JT, _LC, _LR, _MOV, _PADS, _PADB = range(14, 33)
 
 
 def kin(t) -> tuple:
     """The kinematic tuple the kernels take, from a :class:`.any_hand_tables.HandTables`.
 
-    The coupling matrix ``full_a`` (m, n) also goes in by rows of its non-zero entries
-    (row k's are ``a_val[a_start[k]:a_start[k + 1]]`` at columns ``a_col``, in column
-    order): a full joint follows one or two actuated joints, and the forward kinematics
-    sums only those (the same sum: the zeros add nothing)."""
+    The coupling matrix ``full_a`` (m, n) goes in by rows of its non-zero entries (row k's
+    are ``a_val[a_start[k]:a_start[k + 1]]`` at columns ``a_col``, in column order): a full
+    joint follows one or two actuated joints, and the forward kinematics sums only those
+    (the same sum as the whole row: the zeros add nothing)."""
     a = np.asarray(t.full_a, dtype=np.float64)
     rows, cols = np.nonzero(a)  # row-major: each row's columns ascending
     a_start = np.concatenate([[0], np.cumsum(np.count_nonzero(a, axis=1))]).astype(np.int64)
-    return (t.full_a, t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
+    return (a_start, np.ascontiguousarray(cols, dtype=np.int64), np.ascontiguousarray(a[rows, cols]),
+            t.full_b, t.n_links, t.parent, t.pre, t.m_start, t.m_count, t.m_kind, t.m_axis,
             t.m_anchor, t.m_index, t.m_ref, t.g_start, t.g_count, t.grp_start, t.grp_count, t.grp_center,
             t.grp_radius, t.sph_center, t.sph_radius, t.pad_local, t.pad_center, t.pad_radius, t.j_count,
-            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body,
-            a_start, np.ascontiguousarray(cols, dtype=np.int64), np.ascontiguousarray(a[rows, cols]))
+            t.j_index, t.j_target, t.lnk_center, t.lnk_radius, t.moving, t.pad_slack, t.pad_body)
 
 
 @_inline
