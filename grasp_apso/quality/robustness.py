@@ -59,7 +59,10 @@ def _face_boxes(obj) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[
     (F, 3), m: kept per mesh hash (a third of a call's time on a 3000-face mesh)."""
     def build():
         tri = np.array(obj.mesh.triangles, dtype=np.float64)
-        return tri, tri.min(axis=1), tri.max(axis=1)
+        out = (tri, tri.min(axis=1), tri.max(axis=1))
+        for a in out:
+            a.flags.writeable = False  # shared by every caller
+        return out
     key = getattr(obj, "mesh_hash", None)
     return build() if key is None else cached("face_boxes", key, build)
 
