@@ -6,6 +6,7 @@ Rerunnable, not a test::
     .venv/bin/python bench/bench_paper_baseline.py                      # 5 runs, 4 objects
     .venv/bin/python bench/bench_paper_baseline.py --runs 3 --objects all
     .venv/bin/python bench/bench_paper_baseline.py --baseline <rev>     # another reference
+    .venv/bin/python bench/bench_paper_baseline.py --general-baseline <rev>  # + <rev>'s general path
 
 Issue 21 holds the paper hand's plans (5 candidates, on a table) within 1.2x of their time
 before the issue, measured against a worktree of that code. The reference is ``--baseline``
@@ -15,7 +16,10 @@ checked out as a detached ``git worktree`` in a temporary folder and removed at 
 Worker processes plan on request, each on one tree (``PYTHONPATH`` the tree, the same
 interpreter and packages): the paper hand's own path on the reference, its own path on this
 code, and (unless ``--own-path-only``) its URDF, ``urdf/apso_paper_hand.urdf``, on this
-code's general path, the one search path issue 21 asks for. The driver sends every
+code's general path, the one search path issue 21 asks for; with ``--general-baseline
+REV`` also REV's URDF on REV's general path (a second worktree), so that a change of the
+general path is measured against an earlier one in the same run (the ratio and the plans
+with the same best grasp printed below the table). The driver sends every
 (object, seed) to each in turn, rotating which goes first, so that a shared machine's load
 falls on all alike. Each plan: the object resting on a table (``Scene.table_under``), the
 planner's default options with ``--grasps`` candidates, ``np.random.default_rng(seed)``.
@@ -166,8 +170,10 @@ def run(trees: dict[str, tuple], objects: list[str], runs: int, grasps: int) -> 
 #: The workers' labels: the paper hand's own path on the reference, on this code, and its
 #: URDF (``urdf/apso_paper_hand.urdf``) on this code's general path (issue 21's one path).
 BASE, OWN, GENERAL = "baseline", "this code", "this code, general path"
+#: With ``--general-baseline``: the URDF on the general path of an earlier revision too.
+GENERAL_BASE = "general baseline"
 NAMES = {BASE: "before issue 21 ({rev}), own path", OWN: "this code, own path",
-         GENERAL: "this code, its URDF on the general path"}
+         GENERAL: "this code, its URDF on the general path", GENERAL_BASE: "{grev}, its URDF on the general path"}
 
 
 def _same_best(a: dict, b: dict) -> bool:
@@ -195,13 +201,18 @@ def summarise(rec: dict, objects: list[str]) -> dict:
             "candidates_per_plan": statistics.mean(r["candidates"] for o in objects for r in rec[label][o]),
             "same_best": sum(_same_best(a, b) for o in objects for a, b in zip(rec[label][o], rec[BASE][o])),
         }
+    if GENERAL_BASE in rec and GENERAL in rec:
+        g, gb = out["workers"][GENERAL], out["workers"][GENERAL_BASE]
+        out["general_vs_general_baseline"] = {
+            "ratio": g["median"] / gb["median"], "cpu_ratio": g["cpu_median"] / gb["cpu_median"],
+            "same_best": sum(_same_best(a, b) for o in objects for a, b in zip(rec[GENERAL][o], rec[GENERAL_BASE][o]))}
     return out
 
 
-def table(s: dict, objects: list[str], rev: str) -> str:
+def table(s: dict, objects: list[str], rev: str, grev: str = "") -> str:
     header = ["paper hand", *objects, "median (s)", "/ before", "CPU / before", "cand./plan", "same best grasp as before"]
     return markdown_table(header, [
-        [NAMES[label].format(rev=rev), *(f"{w['per_object'][o]:.3f}" for o in objects), f"{w['median']:.3f}",
+        [NAMES[label].format(rev=rev, grev=grev), *(f"{w['per_object'][o]:.3f}" for o in objects), f"{w['median']:.3f}",
          f"{w['ratio']:.2f}x", f"{w['cpu_ratio']:.2f}x", f"{w['candidates_per_plan']:.1f}", f"{w['same_best']}/{s['plans']}"]
         for label, w in s["workers"].items()])
 
@@ -215,6 +226,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grasps", type=int, default=5)
     parser.add_argument("--own-path-only", action="store_true",
                         help="leave out the paper hand's URDF on the general path")
+    parser.add_argument("--general-baseline", metavar="REV",
+                        help="also plan the URDF on the general path of this earlier revision (one that has it), "
+                             "to measure a change of the general path in the same run")
     parser.add_argument("--out", default=str(REPO_ROOT / "bench" / "results" / "paper_baseline.json"))
     args = parser.parse_args(argv)
     if args.runs < 1:
@@ -222,27 +236,44 @@ def main(argv: list[str] | None = None) -> int:
     objects = args.objects
     if objects == ["all"]:
         objects = list(BUILTINS) + mesh_names()
-    rev = subprocess.run(["git", "-C", str(REPO_ROOT), "rev-parse", "--short", args.baseline], check=True,
-                         capture_output=True, text=True).stdout.strip()
+    if args.general_baseline and args.own_path_only:
+        parser.error("--general-baseline: the general path is left out by --own-path-only")
+
+    def short(revision: str) -> str:
+        return subprocess.run(["git", "-C", str(REPO_ROOT), "rev-parse", "--short", revision], check=True,
+                              capture_output=True, text=True).stdout.strip()
+
+    rev = short(args.baseline)
+    grev = short(args.general_baseline) if args.general_baseline else ""
+    urdf = REPO_ROOT / "urdf" / "apso_paper_hand.urdf"
     with tempfile.TemporaryDirectory(prefix="grasp_apso_baseline_") as tmp:
-        tree = Path(tmp) / "tree"
-        subprocess.run(["git", "-C", str(REPO_ROOT), "worktree", "add", "--detach", str(tree), rev], check=True,
-                       capture_output=True)
+        trees = {rev: Path(tmp) / "tree", **({grev: Path(tmp) / "general"} if grev else {})}
         try:
-            workers = {BASE: (tree, None), OWN: (REPO_ROOT, None)}
+            for revision, tree in trees.items():
+                subprocess.run(["git", "-C", str(REPO_ROOT), "worktree", "add", "--detach", str(tree), revision],
+                               check=True, capture_output=True)
+            workers = {BASE: (trees[rev], None), OWN: (REPO_ROOT, None)}
             if not args.own_path_only:
-                workers[GENERAL] = (REPO_ROOT, REPO_ROOT / "urdf" / "apso_paper_hand.urdf")
+                workers[GENERAL] = (REPO_ROOT, urdf)
+            if grev:
+                workers[GENERAL_BASE] = (trees[grev], trees[grev] / "urdf" / "apso_paper_hand.urdf")
             rec = run(workers, objects, args.runs, args.grasps)
         finally:
-            subprocess.run(["git", "-C", str(REPO_ROOT), "worktree", "remove", "--force", str(tree)],
-                           capture_output=True)
+            for tree in trees.values():
+                subprocess.run(["git", "-C", str(REPO_ROOT), "worktree", "remove", "--force", str(tree)],
+                               capture_output=True)
     s = summarise(rec, objects)
-    print(table(s, objects, rev))
+    print(table(s, objects, rev, grev))
+    if "general_vs_general_baseline" in s:
+        g = s["general_vs_general_baseline"]
+        print(f"the general path against {grev}'s: {g['ratio']:.3f}x wall, {g['cpu_ratio']:.3f}x CPU (medians), "
+              f"the same best grasp in {g['same_best']} of {s['plans']} plans")
     print(f"{args.runs} run(s) per object, {s['plans']} plans per worker, medians; target: the paper hand "
           f"within {TARGET_RATIO}x of its time before issue 21 ({rev})")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"command": " ".join(sys.argv), "baseline": rev, "runs": args.runs,
+    out.write_text(json.dumps({"command": " ".join(sys.argv), "baseline": rev, "general_baseline": grev or None,
+                               "runs": args.runs,
                                "grasps": args.grasps, "objects": objects, "target_ratio": TARGET_RATIO,
                                "summary": s, "plans": rec}, indent=1))
     return 0
