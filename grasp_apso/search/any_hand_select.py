@@ -113,7 +113,7 @@ class AnyChecked:
 
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     """The analytic part of the verification of one decoded grasp (no collision check):
-    legality and the closing imbalance; the epsilon, force closure and robust epsilon
+    legality and the closing imbalance (of three contacts or more); the epsilon, force closure and robust epsilon
     (:func:`_closure`) when the closing is balanced enough for the grasp to rank as
     balanced (the others get them when the selection reaches them). The squeeze of a grasp
     with closing forces is left to its verification (None until then)."""
@@ -121,7 +121,12 @@ def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    imbalance, balanced = closing_imbalance(model, decoded, obj)
+    if mask.sum() >= 3:
+        imbalance, balanced = closing_imbalance(model, decoded, obj)
+    else:
+        # Two contacts are never force closure (nor balanced), and the imbalance weighs only
+        # force-closure grasps (:func:`hold_score`): left at 1; the squeeze as it would be.
+        imbalance, balanced = 1.0, bool(mask.sum() >= 2 and sim_settings() is not None)
     squeeze = None if balanced else squeeze_posture(model, decoded.q[0])
     c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
                    None, "", imbalance, squeeze, 0.0)
