@@ -28,6 +28,7 @@ __all__ = ["COVER_VERSION", "cover_key", "covers_from_disk", "hash_geometry"]
 #: such meshes made before were wrong).
 COVER_VERSION = 2
 
+
 def cover_key(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object]) -> str:
     """sha256 of every link's collision geometry and the cover settings."""
     digest = hashlib.sha256(f"v{COVER_VERSION};{sorted(settings.items())!r}".encode())
