@@ -121,12 +121,9 @@ def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])
     scene_clear = decoded.scene_margin is None or bool(decoded.scene_margin[0] >= 0.0)
-    if mask.sum() >= 3:
-        imbalance, balanced = closing_imbalance(model, decoded, obj)
-    else:
-        # Two contacts are never force closure (nor balanced), and the imbalance weighs only
-        # force-closure grasps (:func:`hold_score`): left at 1; the squeeze as it would be.
-        imbalance, balanced = 1.0, bool(mask.sum() >= 2 and sim_settings() is not None)
+    # Two contacts are never force closure (nor balanced), and the imbalance weighs only
+    # force-closure grasps (:func:`hold_score`): solved for from three.
+    imbalance, balanced = closing_imbalance(model, decoded, obj, solve_from=3)
     squeeze = None if balanced else squeeze_posture(model, decoded.q[0])
     c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
                    None, "", imbalance, squeeze, 0.0)

@@ -45,15 +45,18 @@ def sim_settings():
     return settings.SimulationSettings() if settings is not None else None
 
 
-def closing_imbalance(model, decoded, obj) -> tuple[float, bool]:
+def closing_imbalance(model, decoded, obj, solve_from: int = 2) -> tuple[float, bool]:
     """The closing imbalance of one decoded grasp (normal forces of mean ``squeeze_force``,
     :func:`grasp_apso.quality.closing.closing_forces`) and whether its squeeze aims at
     balanced contact forces (:func:`balanced_squeeze`); with fewer than two contacts, or
-    without the simulation's settings, imbalance 1 and the uniform squeeze."""
+    without the simulation's settings, imbalance 1 and the uniform squeeze. With fewer than
+    ``solve_from`` contacts the imbalance is not solved for (read 1), the squeeze the same."""
     mask = decoded.contact[0]
     settings = sim_settings()
     if mask.sum() < 2 or settings is None:
         return 1.0, False
+    if mask.sum() < solve_from:
+        return 1.0, True
     fingers = np.flatnonzero(mask)
     points, normals = decoded.contact_points[0][fingers], decoded.contact_normals[0][fingers]
     imbalance = closing_forces(points, normals, np.asarray(obj.center_of_mass, float),
