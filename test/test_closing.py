@@ -213,11 +213,12 @@ def test_opened_pre_grasp_moves_closing_joints_to_their_opening_limits(allegro):
 
 
 def test_hold_score_orders_fragile_grasps_by_epsilon_not_fitness():
+    from grasp_apso.quality.closure_proof import Epsilon
     from grasp_apso.search.any_hand_select import AnyChecked, hold_score
 
     def checked(fitness, epsilon, robust, imbalance, closure=True):
-        return AnyChecked(None, fitness, epsilon, closure, True, True, 0.01, None, imbalance=imbalance,
-                          robust_epsilon=robust)
+        return AnyChecked(None, fitness, True, True, 0.01, None, imbalance=imbalance,
+                          closure=Epsilon.known(epsilon if closure else 0.0), robust=Epsilon.known(robust))
 
     # The Allegro hand's bowl (seed 0): no grasp robust; the fittest had the smallest epsilon
     # and dropped, the next ones held.

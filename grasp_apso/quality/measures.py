@@ -70,8 +70,10 @@ __all__ = [
     "force_balance_residual",
     "epsilon_quality",
     "epsilon_quality_batch",
+    "closure_wrenches",
     "origin_may_be_inside",
     "hull_epsilon",
+    "hull_only_epsilon",
     "FORCE_CLOSURE_EPS",
     "COINCIDENT_RTOL",
     "COINCIDENT_ATOL",
@@ -413,6 +415,22 @@ def epsilon_quality(
         ``torque_scale <= 0``. Rank-deficient contact sets (no contact, one or two contacts,
         all normals through one line, ...) are not errors: they return ``(0.0, False)``.
     """
+    wrenches = closure_wrenches(points, normals, com, mu, edges, torque_scale)
+    eps = 0.0 if wrenches is None else hull_epsilon(wrenches)
+    return eps, eps > 0.0
+
+
+def closure_wrenches(
+    points: ArrayLike,
+    normals: ArrayLike,
+    com: ArrayLike,
+    mu: float = 0.5,
+    edges: int = 8,
+    torque_scale: Optional[float] = None,
+) -> Optional[NDArray[np.float64]]:
+    """The primitive wrenches (nc * edges, 6) whose hull :func:`epsilon_quality` measures
+    (arguments and errors as there); None when the grasp cannot be force closure whatever
+    the hull (fewer than three contacts, or every contact at the centre of mass)."""
     edges_i = _check_friction(mu, edges, torque_scale)
     pts = _float_array(points, "points")
     nrm = _float_array(normals, "normals")
@@ -431,7 +449,7 @@ def epsilon_quality(
     if pts.shape[0] < 3:
         # One or two point contacts never enclose the origin in 6-D: no force at them has
         # a moment about the line through them, so every wrench lies in a hyperplane.
-        return 0.0, False
+        return None
     nrm = nrm / n_len[:, None]
 
     if torque_scale is None:
@@ -439,10 +457,8 @@ def epsilon_quality(
     else:
         scale = float(torque_scale)
     if not scale > 0.0:  # every contact at the com: no torque at all
-        return 0.0, False
-
-    eps = hull_epsilon(_cone_wrenches(pts, nrm, c, float(mu), edges_i, scale))
-    return eps, eps > 0.0
+        return None
+    return _cone_wrenches(pts, nrm, c, float(mu), edges_i, scale)
 
 
 def hull_epsilon(wrenches: NDArray[np.float64]) -> float:
@@ -452,6 +468,11 @@ def hull_epsilon(wrenches: NDArray[np.float64]) -> float:
     (:func:`origin_may_be_inside`) first; qhull only when the origin may be inside."""
     if not origin_may_be_inside(wrenches):
         return 0.0  # the hull would find the origin outside too
+    return hull_only_epsilon(wrenches)
+
+
+def hull_only_epsilon(wrenches: NDArray[np.float64]) -> float:
+    """:func:`hull_epsilon` without its quick test (for a caller that made it)."""
     try:
         hull = ConvexHull(wrenches)
     except (QhullError, ValueError):

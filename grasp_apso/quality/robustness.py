@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..cache import cached
 from .measures import hull_epsilon
 
-__all__ = ["normal_uncertainty", "robust_epsilon", "robustness_score", "DEFAULT_RADIUS",
+__all__ = ["normal_uncertainty", "robust_epsilon", "robust_wrenches", "robustness_score", "DEFAULT_RADIUS",
            "BACK_FACE_COS"]
 
 #: Neighbourhood of a contact (m): half the fingertip pad radius (8 mm) -- the pad's
@@ -199,6 +199,24 @@ def robust_epsilon(
         The robust epsilon, in ``[0, epsilon_quality(points, normals, com, mu, edges,
         torque_scale)]``; 0.0 when the surviving contacts are not force closure.
     """
+    wrenches = robust_wrenches(obj, points, normals, mu, uncertainty, edges, torque_scale, radius)
+    # most fragile grasps stop at hull_epsilon's quick outside test, before qhull
+    return 0.0 if wrenches is None else hull_epsilon(wrenches)
+
+
+def robust_wrenches(
+    obj,
+    points: ArrayLike,
+    normals: ArrayLike,
+    mu: float = 0.5,
+    uncertainty: ArrayLike | None = None,
+    edges: int = 8,
+    torque_scale: float | None = None,
+    radius: float = DEFAULT_RADIUS,
+) -> NDArray[np.float64] | None:
+    """The primitive wrenches (n, 6) of the shrunk cones whose hull :func:`robust_epsilon`
+    measures (arguments and errors as there); None when fewer than two contacts keep a
+    cone (no force closure)."""
     pts = _points(points, "points")
     nrm = _points(normals, "normals")
     if nrm.shape != pts.shape:
@@ -216,12 +234,11 @@ def robust_epsilon(
     beta = math.atan(mu) - unc
     keep = beta >= 0.0
     if keep.sum() < 2:
-        return 0.0
+        return None
     scale = float(obj.characteristic_radius if torque_scale is None else torque_scale)
     com = np.asarray(obj.center_of_mass, dtype=float)
-    # most fragile grasps stop at hull_epsilon's quick outside test, before qhull
-    return hull_epsilon(_shrunk_cone_wrenches(pts[keep], nrm[keep] / length[keep, None], com, float(mu),
-                                              beta[keep], int(edges), scale))
+    return _shrunk_cone_wrenches(pts[keep], nrm[keep] / length[keep, None], com, float(mu), beta[keep],
+                                 int(edges), scale)
 
 
 def robustness_score(obj, points: ArrayLike, normals: ArrayLike, mu: float = 0.5,

@@ -31,13 +31,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import PlanningError, SimulationError
-from ..quality.measures import epsilon_quality
-from ..quality.robustness import normal_uncertainty, robust_epsilon
+from ..quality.closure_proof import Epsilon
+from ..quality.measures import closure_wrenches
+from ..quality.robustness import normal_uncertainty, robust_wrenches
 from .any_hand_pads import final_decodings, pads_on
 from .any_hand_squeeze import (SOFT_SQUEEZE, balanced_squeeze, closing_imbalance, optional_module,
                                sim_settings, softer_squeeze, squeeze_posture)
@@ -84,14 +85,16 @@ OPENING = (0.5, 1.0)
 NEAR = (0.25, 0.5)
 
 
+def _no_closure() -> Epsilon:
+    return Epsilon(None)
+
+
 @dataclass
 class AnyChecked:
     """One verified candidate (object frame unless said)."""
 
     decoded: object          # AnyDecoded of one particle
     fitness: float
-    epsilon: float
-    force_closure: bool
     valid: bool
     scene_clear: bool
     scene_distance: float
@@ -99,16 +102,35 @@ class AnyChecked:
     note: str = ""
     imbalance: float = 1.0
     squeeze: np.ndarray | None = None
-    robust_epsilon: float = 0.0
+    # The Ferrari-Canny epsilon and the robust one (_closure): verdicts known, values built
+    # when read (the selection sorts by the verdicts; only the grasps it keeps are ranked).
+    closure: Epsilon = field(default_factory=_no_closure)
+    robust: Epsilon = field(default_factory=_no_closure)
     forces: np.ndarray | None = None   # (contacts, 3) N, the squeeze's contact forces (None: uniform squeeze)
-    closure_known: bool = False        # epsilon, force closure (and robust epsilon) computed: _closure
+    closure_known: bool = False        # closure and robust computed: _closure
     fallback: bool = False             # simulate: below the others' class, simulated after them
 
     @property
+    def epsilon(self) -> float:
+        return self.closure.value
+
+    @property
+    def force_closure(self) -> bool:
+        return self.closure.force_closure
+
+    @property
+    def robust_epsilon(self) -> float:
+        return self.robust.value
+
+    @property
+    def robust_closure(self) -> bool:
+        """Force closure that survives the normals' spread at edges and corners (robust epsilon > 0)."""
+        return self.robust.force_closure
+
+    @property
     def balanced(self) -> bool:
-        """Robust force closure (it survives the normals' spread at edges and corners)
-        whose squeezing forces can cancel: ranked as robust."""
-        return self.force_closure and self.robust_epsilon > 0.0 and self.imbalance <= MAX_IMBALANCE
+        """Robust force closure whose squeezing forces can cancel: ranked as robust."""
+        return self.force_closure and self.robust_closure and self.imbalance <= MAX_IMBALANCE
 
 
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
@@ -125,8 +147,8 @@ def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     # force-closure grasps (:func:`hold_score`): solved for from three.
     imbalance, balanced = closing_imbalance(model, decoded, obj, solve_from=3)
     squeeze = None if balanced else squeeze_posture(model, decoded.q[0])
-    c = AnyChecked(decoded, float(fitness), 0.0, False, bool(legal and mask.sum() >= 2), scene_clear, math.inf,
-                   None, "", imbalance, squeeze, 0.0)
+    c = AnyChecked(decoded, float(fitness), bool(legal and mask.sum() >= 2), scene_clear, math.inf, None, "",
+                   imbalance, squeeze)
     if imbalance <= MAX_IMBALANCE:
         _closure(c, options, obj)
     return c
@@ -138,19 +160,19 @@ def _closure(c: AnyChecked, options, obj) -> None:
     decoded = c.decoded
     mask = decoded.contact[0]
     c.closure_known = True
+    c.closure, c.robust = _no_closure(), _no_closure()
     if mask.sum() < 2:
         return
     points, normals = decoded.contact_points[0][mask], decoded.contact_normals[0][mask]
-    eps, closure = epsilon_quality(points, normals, np.asarray(obj.center_of_mass, float), options.friction,
-                                   torque_scale=float(obj.characteristic_radius))
-    c.epsilon, c.force_closure = float(eps), bool(closure)
-    if closure:
+    c.closure = Epsilon(closure_wrenches(points, normals, np.asarray(obj.center_of_mass, float), options.friction,
+                                         torque_scale=float(obj.characteristic_radius)))
+    if c.closure.force_closure:
         uncertainty = normal_uncertainty(obj, points)
         # Certain normals (contacts inside flat faces) leave the cones as they are: the
-        # robust epsilon is the epsilon (same cones: epsilon_quality's 8 edges), its hull
-        # need not be built again.
+        # robust epsilon is the epsilon (same cones: the epsilon's 8 edges), its hull need
+        # not be built again.
         same = not uncertainty.any() and options.friction_edges == 8
-        c.robust_epsilon = c.epsilon if same else float(robust_epsilon(
+        c.robust = c.closure if same else Epsilon(robust_wrenches(
             obj, points, normals, mu=options.friction, uncertainty=uncertainty, edges=options.friction_edges,
             torque_scale=float(obj.characteristic_radius)))
 
@@ -228,7 +250,6 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
         c.fcl = fcl_api.object_report(hc, q_new, root, obj)
     c.valid = c.valid and int(decoded.contact[0].sum()) >= 2
     c.imbalance, balanced = closing_imbalance(model, decoded, obj)
-    c.epsilon, c.force_closure, c.robust_epsilon = 0.0, False, 0.0
     _closure(c, options, obj)
     c.squeeze = None if balanced else squeeze_posture(model, q_new)
     return q_new
@@ -357,7 +378,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             continue
         if not c.closure_known:
             _closure(c, options, obj)
-        if c.force_closure and c.robust_epsilon > 0.0:
+        if c.force_closure and c.robust_closure:
             verify(c)
         else:
             (fragile if c.force_closure else rest).append(c)
@@ -383,13 +404,13 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
         # Shadow hand, 1 of 46 held in the simulation (force closure: 31 of 55).
         fallback = [c for c in kept if not c.force_closure]
         kept = [c for c in kept if c.force_closure]
-    if any(c.robust_epsilon > 0.0 for c in kept):
+    if any(c.robust_closure for c in kept):
         # ... nor fragile ones (no force closure left once the normals' spread at an edge or
         # a rim is allowed for) next to robust ones: on 21 objects on a table, robust
         # candidates held 52 of 53 (Inspire), 31 of 34 (Allegro), 23 of 33 (LEAP); the
         # others 2 of 24, 3 of 13, 0 of 10.
-        fallback = [c for c in kept if c.robust_epsilon <= 0.0] + fallback
-        kept = [c for c in kept if c.robust_epsilon > 0.0]
+        fallback = [c for c in kept if not c.robust_closure] + fallback
+        kept = [c for c in kept if c.robust_closure]
     dropped = len(fallback)
     message = ""
     if len(kept) < options.max_grasps:
@@ -448,7 +469,7 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
     45 -> 47 of 63 plans (Allegro-like; 49 had a grasp that held), 44 -> 47 (Shadow; 47).
     """
     fitness = np.clip(np.nan_to_num(np.array([c.fitness for c in checked], float), nan=0.0, neginf=0.0), 0.0, 1.0)
-    h = np.array([(c.robust_epsilon if c.robust_epsilon > 0.0 else max(c.epsilon, 0.0) * c.force_closure)
+    h = np.array([(c.robust_epsilon if c.robust_closure else max(c.epsilon, 0.0) * c.force_closure)
                   * max(1.0 - c.imbalance, 0.0) for c in checked], float)
     return (1.0 - FITNESS_SHARE) * h / (h + HOLD_SCALE) + FITNESS_SHARE * fitness
 
