@@ -9,6 +9,7 @@ With ``simulate`` a grasp that drops is tried again with :func:`softer_squeeze`.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 
@@ -39,8 +40,10 @@ def optional_module(name: str):
         return None
 
 
+@functools.lru_cache(maxsize=1)
 def sim_settings():
-    """The simulation's settings (None when the simulation package is not there)."""
+    """The simulation's default settings (None when the simulation package is not there):
+    one frozen instance, built once (the selection reads them for every grasp it analyses)."""
     settings = optional_module("grasp_apso.simulation.settings")
     return settings.SimulationSettings() if settings is not None else None
 
