@@ -95,6 +95,7 @@ class IndependentHand:
         self.path = Path(path)
         self.urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_collision_scene_graph=False,
                                        load_collision_meshes=False)
+        _flatten_mimic_chains(self.urdf)
         self.base = self.urdf.base_link
         self.elements = []  # (link, origin (4, 4), fcl geometry, trimesh in the element frame)
         for name, link in self.urdf.link_map.items():
@@ -179,6 +180,34 @@ class IndependentHand:
         world_base = root_pose @ np.linalg.inv(base_root)
         return {name: world_base @ self.urdf.get_transform(frame_to=name, frame_from=self.base)
                 for name in self.urdf.link_map}
+
+
+def _flatten_mimic_chains(urdf) -> None:
+    """A mimic of a mimic made a mimic of the chain's leader (multipliers and offsets
+    composed), in yourdfpy's model: its forward kinematics reads a mimicked joint's value
+    only when that joint is actuated (otherwise it warns and takes 0), while a URDF mimic
+    follows the mimicked joint's value whatever drives it (LinkerHand L10's ``thumb_ip``
+    mimics ``thumb_mcp``, which mimics ``thumb_cmc_pitch``). Bounded: a chain is at most as
+    long as the joint list; a loop is left as the file gives it."""
+    joints = urdf.joint_map
+    for joint in joints.values():
+        mimic = joint.mimic
+        if mimic is None:
+            continue
+        leader, multiplier, offset = mimic.joint, _or(mimic.multiplier, 1.0), _or(mimic.offset, 0.0)
+        for _ in range(len(joints)):
+            up = joints[leader].mimic if leader in joints else None
+            if up is None:
+                break
+            leader, multiplier, offset = (up.joint, multiplier * _or(up.multiplier, 1.0),
+                                          multiplier * _or(up.offset, 0.0) + offset)
+        else:
+            continue  # a loop: no leader
+        mimic.joint, mimic.multiplier, mimic.offset = leader, multiplier, offset
+
+
+def _or(value, default: float) -> float:
+    return default if value is None else float(value)
 
 
 def _limits(joint) -> tuple[float, float]:

@@ -289,6 +289,42 @@ def test_a_coupling_loop_is_refused(allegro_file, tmp_path):
         load_hand(path, spheres=False)
 
 
+def test_a_mimic_of_a_mimic_follows_its_chain_s_leader(allegro_file, tmp_path):
+    """A follower that mimics another follower (LinkerHand L10's ``thumb_ip`` mimics
+    ``thumb_mcp``, which mimics ``thumb_cmc_pitch``) moves with the chain's leader, its
+    value the composition of the two couplings. Checked with yourdfpy on the file without
+    the couplings, the chain's values set explicitly (yourdfpy itself follows no chain)."""
+    import yourdfpy
+
+    text = allegro_file.read_text()
+    text = text.replace('<joint name="index_joint_2" type="revolute">',
+                        '<joint name="index_joint_2" type="revolute"><mimic joint="index_joint_1" multiplier="0.8" '
+                        'offset="0.05"/>')
+    text = text.replace('<joint name="index_joint_3" type="revolute">',
+                        '<joint name="index_joint_3" type="revolute"><mimic joint="index_joint_2" multiplier="1.1" '
+                        'offset="-0.02"/>')
+    path = allegro_file.parent / "chain.urdf"
+    path.write_text(text)
+    hand = load_hand(path, spheres=False)
+    assert "index_joint_2" not in hand.actuated_joints and "index_joint_3" not in hand.actuated_joints
+    plain = yourdfpy.URDF.load(str(allegro_file), load_meshes=False, build_collision_scene_graph=False,
+                               load_collision_meshes=False)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q = np.clip(rng.uniform(hand.lower, hand.upper), hand.lower, hand.upper)
+        q1 = float(np.clip(q[hand.actuated_joints.index("index_joint_1")], 0.0, 1.2))
+        q[hand.actuated_joints.index("index_joint_1")] = q1
+        cfg = dict(zip(hand.actuated_joints, map(float, q)))
+        cfg["index_joint_2"] = 0.8 * q1 + 0.05
+        cfg["index_joint_3"] = 1.1 * cfg["index_joint_2"] - 0.02
+        plain.update_cfg({j: cfg.get(j, 0.0) for j in plain.actuated_joint_names})
+        ours = hand.link_transforms(q)
+        root = plain.get_transform(frame_to=hand.root_link, frame_from=plain.base_link)
+        for link in ("index_middle", "index_distal", "index_tip"):
+            want = np.linalg.inv(root) @ plain.get_transform(frame_to=link, frame_from=plain.base_link)
+            np.testing.assert_allclose(ours[link], want, atol=1e-9, err_msg=link)
+
+
 _MJCF = """<mujoco model="two">
   <asset>{assets}</asset>
   <worldbody>
