@@ -56,7 +56,8 @@ PKG = Path(__file__).resolve().parents[1] / "grasp_apso"
 #: Module-level caches allowed outside cache.py, with why: keyed by a name or a file,
 #: not by object data.
 ALLOWED_LRU = {("model/builtin.py", "_builtin_cached"),  # the four built-in objects, by name
-               ("model/hand.py", "_load_hand_cached")}  # hand description files, by path and mtime
+               ("model/hand.py", "_load_hand_cached"),  # hand description files, by path and mtime
+               ("search/any_hand_squeeze.py", "sim_settings")}  # the simulation's default settings: one frozen instance
 _CONTAINERS = {"dict", "OrderedDict", "defaultdict", "BoundedCache", "WeakValueDictionary", "WeakKeyDictionary",
                "LRUCache", "TTLCache"}
 
