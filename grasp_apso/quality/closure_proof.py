@@ -24,7 +24,7 @@ from scipy.optimize import nnls
 
 from .measures import FORCE_CLOSURE_EPS, hull_only_epsilon, origin_may_be_inside
 
-__all__ = ["CERTIFIED_EPS", "closure_certificate", "Epsilon"]
+__all__ = ["CERTIFIED_EPS", "epsilon_lower_bound", "closure_certificate", "Epsilon"]
 
 #: A proven lower bound on epsilon above this certifies force closure: a thousand times
 #: :data:`~grasp_apso.quality.measures.FORCE_CLOSURE_EPS`, so the hull's rounding (about
