@@ -4,9 +4,9 @@ The candidates are the swarm's best and the leaders' archive (distinct wrists), 
 again (the fittest with their pads turned to the surface, and strictly with only the
 contacts whose pad points lie on it: :func:`grasp_apso.search.any_hand_pads.final_decodings`)
 and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
-closure (:func:`grasp_apso.quality.measures.epsilon_quality`'s wrenches; the verdict proven
-without the hull where it can be, :class:`grasp_apso.quality.closure_proof.Epsilon`), and the python-fcl checks
-of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
+closure (:func:`grasp_apso.quality.measures.epsilon_quality`'s wrenches; the verdict
+proven without the hull where it can be, :class:`grasp_apso.quality.closure_proof.Epsilon`),
+and the python-fcl checks of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
 object, the scene at the grasp, the approach from the pre-grasp) when that module is
 there; fingers whose exact geometry presses into the object are seated on it
 (:mod:`.exact_seat`) and contacting fingers whose pad links stand off it closed onto it
