@@ -241,6 +241,21 @@ def test_servos_reach_a_commanded_posture(hands, name):
             assert abs(follower - (c.multiplier * leader + c.offset)) < 0.02, c
 
 
+def test_a_coupled_leader_s_servo_holds_each_joint_it_drives_as_stiffly_as_an_uncoupled_one(hands):
+    """The allegro-like hand's distal joints mimic its middle ones (multiplier 1): a middle
+    joint's servo drives two joints, so its gain is twice an uncoupled joint's (1 + the sum
+    of its followers' squared multipliers, from the file's couplings), as the squeeze
+    assumes; held in its own angle the chain would be half as stiff."""
+    hand = hands["allegro_coupled"]
+    sc, settings = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
+    leaders = {c.leader for c in hand.couplings}
+    assert leaders
+    for name in hand.actuated_joints:
+        weight = 1.0 + sum(c.multiplier ** 2 for c in hand.couplings if c.leader == name)
+        assert sc.model.actuator(f"servo:{name}").gainprm[0] == pytest.approx(settings.kp * weight), name
+        assert (weight == 2.0) == (name in leaders)
+
+
 # ------------------------------------------------------------------------- verdicts
 @pytest.mark.parametrize("name", ["allegro", "shadow"])
 def test_empty_grasp_drops(hands, name):

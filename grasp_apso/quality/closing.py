@@ -136,7 +136,7 @@ def balanced_forces(points: np.ndarray, normals: np.ndarray, center: np.ndarray,
 
 
 def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root: np.ndarray,
-                          normals_root: np.ndarray, forces: np.ndarray, kp: float,
+                          normals_root: np.ndarray, forces: np.ndarray, kp: float | np.ndarray,
                           max_torque: float | None = None, gaps: np.ndarray | None = None,
                           step: float = 1e-4) -> np.ndarray:
     """The squeezed posture: ``q + sum_i [J_i^+ (g_i u_i) + J_i^T f_i / kp]`` within
@@ -156,8 +156,8 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
         Contacts and outward object normals in the hand's root frame.
     forces : (N,) float, N, or (N, 3) float, N
         Magnitudes along ``u_i``, or the force vectors themselves (:func:`balanced_forces`).
-    kp : float, N m / rad (N / m for a slide)
-        The servos' position gain.
+    kp : float or (n,) float, N m / rad (N / m for a slide)
+        The servos' position gain, or each actuated joint's.
     max_torque : float, N m, optional
         The servos' torque limit: each joint's torque is clipped to it.
     gaps : (N,) float, m, optional
@@ -189,4 +189,4 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
             reach += along * (gap / norm2)
     if max_torque is not None:
         tau = np.clip(tau, -max_torque, max_torque)
-    return np.clip(q + reach + tau / float(kp), hand.lower, hand.upper)
+    return np.clip(q + reach + tau / np.asarray(kp, dtype=float), hand.lower, hand.upper)

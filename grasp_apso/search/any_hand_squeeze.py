@@ -87,7 +87,8 @@ def balanced_squeeze(model, decoded, obj, mu: float, settings, report=None,
     forces, _ = balanced_forces(points, normals, np.asarray(obj.center_of_mass, float),
                                 float(obj.characteristic_radius), mu, share * settings.squeeze_force)
     squeeze = squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root,
-                                    forces @ inv[:3, :3].T, settings.kp, settings.max_torque, gaps=gaps)
+                                    forces @ inv[:3, :3].T, settings.kp * model.hand.servo_weight,
+                                    settings.max_torque, gaps=gaps)
     return squeeze, forces
 
 

@@ -19,7 +19,8 @@
 - Compiled once per (object, hand, scene, settings) and cached (MuJoCo compiles a hand of
   many meshes in 0.5 s); each grasp moves a copy (the top body, the object's free joint).
 - Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
-  servo's time constant stays ``joint_damping / kp``; torque within
+  servo's time constant stays ``joint_damping / kp``, and times ``hand.servo_weight`` on a
+  coupled leader, so that it holds each joint it drives as stiffly; torque within
   ``settings.max_torque``) on the actuated joints, in ``hand.actuated_joints`` order
   (``data.ctrl`` = targets, rad or m).
   Joint armature and damping are raised to at least the settings' values: a servo is
@@ -414,6 +415,10 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
             raise SimulationError(f"simulation: actuated joint {name!r} is not a joint of the compiled hand")
         # (no damping set: no time constant to keep, the gain as set)
         kp = max(settings.kp, float(np.max(joint.damping)) / tau) if tau > 0.0 else settings.kp
+        # A coupled leader's servo as stiff on each joint it drives as an uncoupled joint's
+        # (hand.servo_weight; the squeeze reads the same gains): held in its own angle, the
+        # LinkerHand L10's thumb (one servo, gears 2.24 and 2.38) gave way in the squeeze.
+        kp *= float(hand.servo_weight[hand.actuated_joints.index(name)])
         a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.dyntype = mujoco.mjtDyn.mjDYN_NONE
         a.gaintype = mujoco.mjtGain.mjGAIN_FIXED

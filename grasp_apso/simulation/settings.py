@@ -80,7 +80,8 @@ class SimulationSettings:
         How often the shift and turn are measured during a disturbance.
     kp : float, N m / rad
         Position gain of the finger servos (a fingertip force of a few newtons for the
-        squeeze: 2 N m/rad * 0.14 rad / 0.07 m ~ 4 N).
+        squeeze: 2 N m/rad * 0.14 rad / 0.07 m ~ 4 N); a general hand's coupled leader gets
+        it times ``HandModel.servo_weight`` (it drives several joints).
     max_torque : float, N m
         Servo torque limit.
     joint_damping : float, N m s / rad; joint_armature : float, kg m^2

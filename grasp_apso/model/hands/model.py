@@ -177,6 +177,17 @@ class HandModel:
         return link_poses(self._tree, self.full_positions(q))
 
     @cached_property
+    def servo_weight(self) -> np.ndarray:
+        """(n,) float: how much stiffer a position servo on each actuated joint is made so
+        that it holds every joint it drives as stiffly as a servo holds a joint of its own:
+        the sum of squares of the joint's column of ``full_matrix`` (1 for a joint that moves
+        only itself; 1 + sum r^2 for a leader whose followers move r times as far: held in its
+        own angle, such a leader's chain is 1 + sum r^2 times as soft)."""
+        weight = (np.asarray(self.full_matrix, dtype=float) ** 2).sum(axis=0)
+        weight.flags.writeable = False
+        return weight
+
+    @cached_property
     def _tree(self) -> FlatTree:
         """The kinematic tree flattened for the compiled walk (once per model; a model
         made by ``replace`` flattens its own)."""
