@@ -147,19 +147,12 @@ class IndependentHand:
         return cfg
 
     def all_joint_values(self, cfg: dict[str, float]) -> dict[str, float]:
-        """Every movable joint's value, mimic followers from their leaders (chains followed)."""
+        """Every movable joint's value, mimic followers from their leaders (each chain
+        composed into a mimic of its leader on loading: ``_flatten_mimic_chains``)."""
         out = dict(cfg)
-        for _ in range(len(self.urdf.joint_map)):
-            missing = False
-            for name, joint in self.urdf.joint_map.items():
-                if joint.mimic is None or name in out:
-                    continue
-                if joint.mimic.joint in out:
-                    out[name] = joint.mimic.multiplier * out[joint.mimic.joint] + joint.mimic.offset
-                else:
-                    missing = True
-            if not missing:
-                break
+        for name, joint in self.urdf.joint_map.items():
+            if joint.mimic is not None and name not in out and joint.mimic.joint in cfg:
+                out[name] = joint.mimic.multiplier * cfg[joint.mimic.joint] + joint.mimic.offset
         return out
 
     def limit_violations(self, cfg: dict[str, float]) -> list[str]:

@@ -6,8 +6,9 @@ contacts whose pad points lie on it: :func:`grasp_apso.search.any_hand_pads.fina
 and taken in descending fitness: each gets the Ferrari-Canny epsilon and force
 closure (:func:`grasp_apso.quality.measures.epsilon_quality`'s wrenches; the verdict
 proven without the hull where it can be, :class:`grasp_apso.quality.closure_proof.Epsilon`),
-and the python-fcl checks of the hand's exact collision geometry (:mod:`grasp_apso.geometry.any_hand_fcl`: the
-object, the scene at the grasp, the approach from the pre-grasp) when that module is
+and the python-fcl checks of the hand's exact collision geometry
+(:mod:`grasp_apso.geometry.any_hand_fcl`: the object, the scene at the grasp, the approach
+from the pre-grasp) when that module is
 there; fingers whose exact geometry presses into the object are seated on it
 (:mod:`.exact_seat`) and contacting fingers whose pad links stand off it closed onto it
 (:mod:`.exact_touch`), their contacts and the grasp's closure then taken again. Ranked by :func:`grasp_apso.search.ranking.grasp_quality`, where a *balanced* force-closure
@@ -138,10 +139,11 @@ class AnyChecked:
 
 def _analyse(model, decoded, fitness: float, options, obj) -> AnyChecked:
     """The analytic part of the verification of one decoded grasp (no collision check):
-    legality and the closing imbalance (of three contacts or more); the epsilon, force closure and robust epsilon
-    (:func:`_closure`) when the closing is balanced enough for the grasp to rank as
-    balanced (the others get them when the selection reaches them). The squeeze of a grasp
-    with closing forces is left to its verification (None until then)."""
+    legality and the closing imbalance (of three contacts or more); the epsilon, force
+    closure and robust epsilon (:func:`_closure`) when the closing is balanced enough for
+    the grasp to rank as balanced (the others get them when the selection reaches them).
+    The squeeze of a grasp with closing forces is left to its verification (None until
+    then)."""
     s = model.settings
     mask = decoded.contact[0]
     legal = bool(decoded.legal(s.max_penetration)[0])

@@ -416,7 +416,7 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         # (no damping set: no time constant to keep, the gain as set)
         kp = max(settings.kp, float(np.max(joint.damping)) / tau) if tau > 0.0 else settings.kp
         # A coupled leader's servo as stiff on each joint it drives as an uncoupled joint's
-        # (hand.servo_weight; the squeeze reads the same gains): held in its own angle, the
+        # (hand.servo_weight; the squeeze weights its gains alike): held in its own angle, the
         # LinkerHand L10's thumb (one servo, gears 2.24 and 2.38) gave way in the squeeze.
         kp *= float(hand.servo_weight[hand.actuated_joints.index(name)])
         a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
