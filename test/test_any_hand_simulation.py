@@ -251,9 +251,31 @@ def test_a_coupled_leader_s_servo_holds_each_joint_it_drives_as_stiffly_as_an_un
     leaders = {c.leader for c in hand.couplings}
     assert leaders
     for name in hand.actuated_joints:
-        weight = 1.0 + sum(c.multiplier ** 2 for c in hand.couplings if c.leader == name)
-        assert sc.model.actuator(f"servo:{name}").gainprm[0] == pytest.approx(settings.kp * weight), name
+        ratios = [1.0] + [abs(c.multiplier) for c in hand.couplings if c.leader == name]
+        weight = sum(r ** 2 for r in ratios)
+        servo = sc.model.actuator(f"servo:{name}")
+        assert servo.gainprm[0] == pytest.approx(settings.kp * weight), name
         assert (weight == 2.0) == (name in leaders)
+        # Its torque limit: the servo's torque t loads joint i with t r_i / sum r^2, so the
+        # most loaded joint bears an uncoupled servo's limit when t = max_torque sum r^2 / max r.
+        limit = settings.max_torque * weight / max(ratios)
+        assert servo.forcerange == pytest.approx([-limit, limit]), name
+        assert servo.forcelimited
+
+
+def test_an_mjcf_s_coupled_leader_keeps_one_servo_s_torque_limit(hands):
+    """The Shadow hand's MJCF couples each distal joint to its middle one by a fixed tendon
+    and actuates the middle joint alone: that one actuator's limit bounds the chain (a URDF
+    mimic joint bears an effort limit of its own, an MJCF tendon does not), while its gain
+    is weighted as any coupled leader's."""
+    hand = hands["shadow"]
+    sc, settings = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
+    leaders = {c.leader for c in hand.couplings}
+    assert len(leaders) == 4 and not any(c.own_effort for c in hand.couplings)
+    for name in hand.actuated_joints:
+        servo = sc.model.actuator(f"servo:{name}")
+        assert servo.forcerange == pytest.approx([-settings.max_torque, settings.max_torque]), name
+        assert (servo.gainprm[0] > 1.5 * settings.kp) == (name in leaders), name
 
 
 # ------------------------------------------------------------------------- verdicts

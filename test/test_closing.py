@@ -119,6 +119,31 @@ def test_squeeze_pushes_each_pad_into_the_surface(allegro):
     assert np.allclose(vectors, squeezed)
 
 
+def test_each_joint_s_torque_is_clipped_to_its_own_servo_s_limit(allegro):
+    """``max_torque`` per joint (a coupled leader's servo may exert more,
+    ``HandModel.servo_force_scale``): a joint's step is its clipped torque over its gain,
+    the others' as with no limit."""
+    hand = allegro
+    q = 0.5 * (np.asarray(hand.lower) + np.asarray(hand.upper))
+    finger = hand.fingers[0]
+    pad = (hand.link_transforms(q)[finger.pad_link] @ np.append(finger.pad_center, 1.0))[:3]
+    normal = np.array([0.0, 0.0, 1.0])
+    kp = 50.0
+    free = squeeze_toward_forces(hand, q, [0], pad[None], normal[None], [20.0], kp)
+    torque = (free - q) * kp  # (no joint at its limit: mid-range posture, a small step)
+    loaded = int(np.argmax(np.abs(torque)))
+    assert abs(torque[loaded]) > 0.1
+    limits = np.full(len(q), 1e3)
+    limits[loaded] = 0.25 * abs(torque[loaded])
+    clipped = squeeze_toward_forces(hand, q, [0], pad[None], normal[None], [20.0], kp, max_torque=limits)
+    assert (clipped[loaded] - q[loaded]) * kp == pytest.approx(np.sign(torque[loaded]) * limits[loaded])
+    others = np.arange(len(q)) != loaded
+    assert clipped[others] == pytest.approx(free[others])
+    # one scalar limit clips every joint alike
+    scalar = squeeze_toward_forces(hand, q, [0], pad[None], normal[None], [20.0], kp, max_torque=limits[loaded])
+    assert np.all(np.abs(scalar - q) * kp <= limits[loaded] + 1e-9)
+
+
 @pytest.fixture(scope="module")
 def shadow_cube():
     hand = load_hand(installed_hand("shadow"))

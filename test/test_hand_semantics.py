@@ -309,6 +309,8 @@ def test_a_mimic_of_a_mimic_follows_its_chain_s_leader(allegro_file, tmp_path):
     assert "index_joint_2" not in hand.actuated_joints and "index_joint_3" not in hand.actuated_joints
     # the leader's servo drives three joints: 1 + 0.8^2 + (1.1 * 0.8)^2 times an uncoupled one's gain
     assert hand.servo_weight[hand.actuated_joints.index("index_joint_1")] == pytest.approx(1 + 0.8 ** 2 + 0.88 ** 2)
+    # ... and the leader itself moves farthest (1 against 0.8 and 0.88): its torque limit that many times too
+    assert hand.servo_force_scale[hand.actuated_joints.index("index_joint_1")] == pytest.approx(1 + 0.8 ** 2 + 0.88 ** 2)
     plain = yourdfpy.URDF.load(str(allegro_file), load_meshes=False, build_collision_scene_graph=False,
                                load_collision_meshes=False)
     rng = np.random.default_rng(5)

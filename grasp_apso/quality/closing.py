@@ -137,7 +137,7 @@ def balanced_forces(points: np.ndarray, normals: np.ndarray, center: np.ndarray,
 
 def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root: np.ndarray,
                           normals_root: np.ndarray, forces: np.ndarray, kp: float | np.ndarray,
-                          max_torque: float | None = None, gaps: np.ndarray | None = None,
+                          max_torque: float | np.ndarray | None = None, gaps: np.ndarray | None = None,
                           step: float = 1e-4) -> np.ndarray:
     """The squeezed posture: ``q + sum_i [J_i^+ (g_i u_i) + J_i^T f_i / kp]`` within
     the limits, with ``u_i = -n_i`` (into the object) and ``J_i^+ (g u) = J^T u g / |J^T u|^2``
@@ -158,8 +158,8 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
         Magnitudes along ``u_i``, or the force vectors themselves (:func:`balanced_forces`).
     kp : float or (n,) float, N m / rad (N / m for a slide)
         The servos' position gain, or each actuated joint's.
-    max_torque : float, N m, optional
-        The servos' torque limit: each joint's torque is clipped to it.
+    max_torque : float or (n,) float, N m, optional
+        The servos' torque limit, or each actuated joint's: each joint's torque is clipped to it.
     gaps : (N,) float, m, optional
         Each pad's distance to the surface at q (negative: penetrating); 0 when None.
     step : float
@@ -188,5 +188,6 @@ def squeeze_toward_forces(hand, q: np.ndarray, fingers: np.ndarray, points_root:
         if norm2 > 1e-12:
             reach += along * (gap / norm2)
     if max_torque is not None:
-        tau = np.clip(tau, -max_torque, max_torque)
+        limit = np.asarray(max_torque, dtype=float)
+        tau = np.clip(tau, -limit, limit)
     return np.clip(q + reach + tau / np.asarray(kp, dtype=float), hand.lower, hand.upper)

@@ -88,7 +88,7 @@ def balanced_squeeze(model, decoded, obj, mu: float, settings, report=None,
                                 float(obj.characteristic_radius), mu, share * settings.squeeze_force)
     squeeze = squeeze_toward_forces(model.hand, decoded.q[0], fingers, points_root, normals_root,
                                     forces @ inv[:3, :3].T, settings.kp * model.hand.servo_weight,
-                                    settings.max_torque, gaps=gaps)
+                                    settings.max_torque * model.hand.servo_force_scale, gaps=gaps)
     return squeeze, forces
 
 

@@ -21,7 +21,8 @@
 - Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
   servo's time constant stays ``joint_damping / kp``, and times ``hand.servo_weight`` on a
   coupled leader, so that it holds each joint it drives as stiffly; torque within
-  ``settings.max_torque``) on the actuated joints, in ``hand.actuated_joints`` order
+  ``settings.max_torque``, times ``hand.servo_force_scale`` on a coupled leader, so that
+  the most loaded joint it drives bears that torque) on the actuated joints, in ``hand.actuated_joints`` order
   (``data.ctrl`` = targets, rad or m).
   Joint armature and damping are raised to at least the settings' values: a servo is
   stable at the protocol's 4 ms step only with enough inertia on the joint (a bare
@@ -431,7 +432,10 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         a.gear = [1.0, 0, 0, 0, 0, 0]
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        a.forcerange = [-settings.max_torque, settings.max_torque]
+        # Its torque limit alike: held to max_torque in its own angle, the L10's thumb servo
+        # saturated under DexGraspBench's gain (5) while the other fingers pushed on.
+        limit = settings.max_torque * float(hand.servo_force_scale[hand.actuated_joints.index(name)])
+        a.forcerange = [-limit, limit]
 
 
 def _add_object(spec, parts, settings: SimulationSettings, priority: int) -> None:

@@ -83,7 +83,8 @@ class SimulationSettings:
         squeeze: 2 N m/rad * 0.14 rad / 0.07 m ~ 4 N); a general hand's coupled leader gets
         it times ``HandModel.servo_weight`` (it drives several joints).
     max_torque : float, N m
-        Servo torque limit.
+        Servo torque limit; a general hand's coupled leader gets it times
+        ``HandModel.servo_force_scale`` (the most loaded joint it drives bears this).
     joint_damping : float, N m s / rad; joint_armature : float, kg m^2
         Critically damped servos: damping ~ 2 sqrt(kp * armature).
     impratio : float

@@ -73,7 +73,13 @@ class Coupling:
     (a limited tendon's range; 0 for an equality or a URDF mimic). A follower with play
     lags its leader: the closing drags it along the edge of its play behind the motion,
     and the loaded hand's ``offset`` is that edge's
-    (:func:`~.description.lagging_couplings`)."""
+    (:func:`~.description.lagging_couplings`).
+
+    ``own_effort``: the follower bears an effort limit of its own (a URDF gives every
+    joint, a mimic one too, its ``<limit effort>``), so a servo on the leader may load each
+    joint it drives to a servo's limit (:attr:`HandModel.servo_force_scale`); False when one
+    actuator on the leader drives the chain through an equality or a tendon (an MJCF: its
+    ``forcerange`` bounds the whole chain)."""
 
     follower: str
     leader: str
@@ -81,6 +87,7 @@ class Coupling:
     offset: float
     source: str
     slack: float = 0.0
+    own_effort: bool = False
 
 
 @dataclass(frozen=True)
@@ -186,6 +193,24 @@ class HandModel:
         weight = (np.asarray(self.full_matrix, dtype=float) ** 2).sum(axis=0)
         weight.flags.writeable = False
         return weight
+
+    @cached_property
+    def servo_force_scale(self) -> np.ndarray:
+        """(n,) float: how much more torque a position servo on each actuated joint may exert
+        than a servo's limit. A leader whose followers each bear an effort limit of their
+        own (:attr:`Coupling.own_effort`: a URDF's mimic joints) may load the most loaded
+        joint it drives to that limit: the servo's torque ``t`` loads joint i with
+        ``t r_i / sum r^2`` (the stiffness of :attr:`servo_weight` shared by virtual work),
+        so ``sum r^2 / max |r|``. 1 for a joint that moves only itself, and for a leader
+        that drives a follower through the file's one actuator (an MJCF's equality or
+        tendon: that actuator's limit bounds the chain)."""
+        a = np.abs(np.asarray(self.full_matrix, dtype=float))
+        scale = (a ** 2).sum(axis=0) / a.max(axis=0)
+        for c in self.couplings:
+            if not c.own_effort and c.leader in self.actuated_joints:
+                scale[self.actuated_joints.index(c.leader)] = 1.0
+        scale.flags.writeable = False
+        return scale
 
     @cached_property
     def _tree(self) -> FlatTree:

@@ -217,7 +217,7 @@ def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF
                 raw.couplings.append(Coupling(joint.name, joint.mimic.joint,
                                               float(1.0 if joint.mimic.multiplier is None else joint.mimic.multiplier),
                                               float(0.0 if joint.mimic.offset is None else joint.mimic.offset),
-                                              f"joint {joint.name} mimic"))
+                                              f"joint {joint.name} mimic", own_effort=True))
         raw.links.append(RawLink(name, None if joint is None else joint.parent, origin, moving, geoms))
         for child_joint in reversed(children.get(name, [])):  # depth first, file order
             order.append((child_joint.child, child_joint))
