@@ -28,7 +28,10 @@ def test_text_output_names_everything_a_user_checks(capsys):
     assert "held above the palm (fixed, not actuated for grasping): wrist_z=0, wrist_y=0, wrist_x=0" in out
     assert "finger thumb (thumb): tip thumb_tip" in out
     assert "index_pivot" in out and "pre-shape" in out and "+1 closes" in out
-    assert "coupling: index_middle = 1.5 * index_distal + 0  (joint index_middle mimic)" in out
+    assert "coupling: index_middle = 1.5 * index_distal + 0  (joint index_middle mimic; its own effort limit)" in out
+    # the simulation's servo on the leader: 1 + 1.5^2 times as stiff, its torque limit that over the
+    # largest gear (1.5), so that the mimic joint bears an uncoupled servo's limit
+    assert "servo on index_distal: gain x3.25, torque limit x2.1667 (it drives coupled joints)" in out
     assert "collision spheres:" in out and "stray" in out
     assert out.count("pad on ") == 5
 
@@ -42,6 +45,9 @@ def test_json_output_and_picture(capsys, tmp_path):
     assert [f["thumb"] for f in data["fingers"]] == [False] * 4 + [True]
     assert data["fingers"][0]["closing"] == [0, 1, 1]
     assert len(data["actuated_joints"]) == 15
+    assert all(c["own_effort"] for c in data["couplings"]) and len(data["couplings"]) == 5
+    assert data["servo_torque_scale"]["index_distal"] == pytest.approx(3.25 / 1.5, abs=1e-4)
+    assert data["servo_gain_scale"]["index_pivot"] == 1.0 and data["servo_torque_scale"]["index_pivot"] == 1.0
     for link, s in data["spheres"].items():
         assert s["count"] >= 1 and s["max_stray_m"] <= 0.0021, link
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -21,9 +21,10 @@
 - Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
   servo's time constant stays ``joint_damping / kp``, and times ``hand.servo_weight`` on a
   coupled leader, so that it holds each joint it drives as stiffly; torque within
-  ``settings.max_torque``, times ``hand.servo_force_scale`` on a coupled leader, so that
-  the most loaded joint it drives bears that torque) on the actuated joints, in ``hand.actuated_joints`` order
-  (``data.ctrl`` = targets, rad or m).
+  ``settings.max_torque``, times ``hand.servo_force_scale`` on a leader of URDF mimic
+  joints, so that the most loaded joint it drives bears that torque; an MJCF's tendon or
+  equality keeps its one actuator's limit) on the actuated joints, in
+  ``hand.actuated_joints`` order (``data.ctrl`` = targets, rad or m).
   Joint armature and damping are raised to at least the settings' values: a servo is
   stable at the protocol's 4 ms step only with enough inertia on the joint (a bare
   fingertip of 1e-6 kg m^2 under 2 N m/rad would need a 0.7 ms step).

@@ -60,7 +60,11 @@ def summary(hand) -> dict[str, Any]:
         "spheres": {link: {"count": int(len(c.radii)), "max_stray_m": round(float(c.max_stray), 6),
                            "uncovered": round(float(c.uncovered), 6)} for link, c in hand.spheres.items()},
         "couplings": [{"follower": c.follower, "leader": c.leader, "multiplier": round(c.multiplier, 6),
-                       "offset": round(c.offset, 6), "source": c.source} for c in hand.couplings],
+                       "offset": round(c.offset, 6), "source": c.source, "own_effort": c.own_effort}
+                      for c in hand.couplings],
+        # the simulation's servo on each actuated joint, relative to an uncoupled one's
+        "servo_gain_scale": {j: round(float(w), 4) for j, w in zip(hand.actuated_joints, hand.servo_weight)},
+        "servo_torque_scale": {j: round(float(w), 4) for j, w in zip(hand.actuated_joints, hand.servo_force_scale)},
         "held_joints": {j: round(float(v), 6) for j, v in hand.held_joints.items()},
         "notes": list(hand.notes),
         "source_hash": hand.source_hash,
@@ -85,7 +89,13 @@ def text(data: dict[str, Any]) -> str:
             out.append(f"    {joint:<32} {_sense(c):<10} [{lo:g}, {hi:g}]")
         out.append(f"    pad on {f['pad_link']} at {f['pad_center']} m, radius {f['pad_radius'] * 1000:.1f} mm")
     for c in data["couplings"]:
-        out.append(f"coupling: {c['follower']} = {c['multiplier']:g} * {c['leader']} + {c['offset']:g}  ({c['source']})")
+        effort = "; its own effort limit" if c["own_effort"] else ""
+        out.append(f"coupling: {c['follower']} = {c['multiplier']:g} * {c['leader']} + {c['offset']:g}  "
+                   f"({c['source']}{effort})")
+    scaled = [j for j in data["actuated_joints"] if data["servo_gain_scale"][j] != 1.0]
+    for j in scaled:
+        out.append(f"servo on {j}: gain x{data['servo_gain_scale'][j]:g}, torque limit "
+                   f"x{data['servo_torque_scale'][j]:g} (it drives coupled joints)")
     if data["spheres"]:
         total = sum(s["count"] for s in data["spheres"].values())
         worst = max(s["max_stray_m"] for s in data["spheres"].values())

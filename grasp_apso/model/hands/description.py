@@ -287,7 +287,8 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
                              f"{follower} stays within its limits")
         lower_a[k], upper_a[k] = lo, hi
     direct = {c.follower: c for c in raw.couplings}
-    couplings = tuple(Coupling(f, l, mu, o, direct[f].source, direct[f].slack, direct[f].own_effort) for f, (l, mu, o) in resolved.items())
+    couplings = tuple(Coupling(f, l, mu, o, direct[f].source, direct[f].slack, direct[f].own_effort)
+                      for f, (l, mu, o) in resolved.items())
     return Kinematics(tuple(names), tuple(parents), readonly(origins), tuple(motions), tuple(joint_names),
                       tuple(j.name for j in actuated), readonly(lower_a), readonly(upper_a),
                       readonly(matrix), readonly(offset), couplings, hold_out)
