@@ -135,6 +135,29 @@ def _mujoco_reference(hand, model, q: np.ndarray) -> dict[str, np.ndarray]:
     return {name: root @ pose for name, pose in poses.items()}
 
 
+def test_a_urdf_mimic_bears_its_own_effort_and_an_mjcf_coupling_its_actuator_s(hands, files):
+    """A URDF gives every joint, a mimic one too, its own ``<limit effort>``; an MJCF's
+    tendon or joint equality passes its one actuator's force on. The coupled leader's servo
+    torque scale follows (``sum r^2 / max |r|`` from the file's multipliers, else 1)."""
+    import xml.etree.ElementTree as ET
+
+    for name in ("allegro_coupled", "paper_urdf"):
+        hand = hands[name]
+        mimics = {j.get("name"): float(j.find("mimic").get("multiplier", 1.0))
+                  for j in ET.parse(files[name]).getroot().iter("joint") if j.find("mimic") is not None}
+        assert mimics and {c.follower for c in hand.couplings} == set(mimics), name
+        assert all(c.own_effort for c in hand.couplings), name
+        for leader in {c.leader for c in hand.couplings}:
+            ratios = [1.0] + [abs(mimics[c.follower]) for c in hand.couplings if c.leader == leader]
+            scale = hand.servo_force_scale[hand.actuated_joints.index(leader)]
+            assert scale == pytest.approx(sum(r * r for r in ratios) / max(ratios)), (name, leader)
+    for name in ("shadow", "adroit", "robotiq_s", "jaco"):  # tendons, joint equalities
+        hand = hands[name]
+        assert hand.couplings and not any(c.own_effort for c in hand.couplings), name
+        assert np.all(hand.servo_force_scale == 1.0), name
+        assert np.any(hand.servo_weight > 1.0), name  # (the gains are still weighted)
+
+
 @pytest.mark.parametrize("name", MJCF_HANDS)
 def test_link_transforms_match_mujoco(hands, files, name):
     hand = hands[name]
