@@ -411,7 +411,7 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
     # file damps it more (robosuite's Inspire and Fourier hands: 1 N m s/rad), else the
     # fingers would lag their targets by 0.2 rad after the closing.
     tau = settings.joint_damping / settings.kp
-    for name in hand.actuated_joints:
+    for i, name in enumerate(hand.actuated_joints):
         joint = spec.joint(name)
         if joint is None:
             raise SimulationError(f"simulation: actuated joint {name!r} is not a joint of the compiled hand")
@@ -420,7 +420,7 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         # A coupled leader's servo as stiff on each joint it drives as an uncoupled joint's
         # (hand.servo_weight; the squeeze weights its gains alike): held in its own angle, the
         # LinkerHand L10's thumb (one servo, gears 2.24 and 2.38) gave way in the squeeze.
-        kp *= float(hand.servo_weight[hand.actuated_joints.index(name)])
+        kp *= float(hand.servo_weight[i])
         a = spec.add_actuator(name=f"servo:{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.dyntype = mujoco.mjtDyn.mjDYN_NONE
         a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
@@ -435,7 +435,7 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
         a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         # Its torque limit alike: held to max_torque in its own angle, the L10's thumb servo
         # saturated under DexGraspBench's gain (5) while the other fingers pushed on.
-        limit = settings.max_torque * float(hand.servo_force_scale[hand.actuated_joints.index(name)])
+        limit = settings.max_torque * float(hand.servo_force_scale[i])
         a.forcerange = [-limit, limit]
 
 

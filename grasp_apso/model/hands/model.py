@@ -204,8 +204,7 @@ class HandModel:
         so ``sum r^2 / max |r|``. 1 for a joint that moves only itself, and for a leader
         that drives a follower through the file's one actuator (an MJCF's equality or
         tendon: that actuator's limit bounds the chain)."""
-        a = np.abs(np.asarray(self.full_matrix, dtype=float))
-        scale = (a ** 2).sum(axis=0) / a.max(axis=0)
+        scale = self.servo_weight / np.abs(np.asarray(self.full_matrix, dtype=float)).max(axis=0)
         for c in self.couplings:
             if not c.own_effort and c.leader in self.actuated_joints:
                 scale[self.actuated_joints.index(c.leader)] = 1.0
