@@ -25,6 +25,12 @@ class SimulationSettings:
         Sliding friction coefficient of every contact: the planner's mu, 0.5.
     torsional_friction, rolling_friction : float, m
         MuJoCo's torsional (used with condim >= 4) and rolling (condim 6) coefficients.
+        The torsional one bounds the moment about the contact normal, ``torsional_friction
+        * normal force``; a pressed patch of radius a carries ``2/3 mu a`` (uniform
+        pressure), so 0.005 (MuJoCo's default) is a fingertip patch of 15 mm radius at mu
+        0.5, already a broad pad. DexGraspBench's 0.02 would be a 60 mm patch, wider than
+        any fingertip: its check holds grasps that spin on the pads in ours (measured in
+        docs/any-hand-measurements.md), and the check keeps the physical value.
     condim : int
         4 (sliding + torsional friction) or 6 (+ rolling); 3 is accepted too.
     disturbance : float, m/s^2
