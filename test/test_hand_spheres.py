@@ -305,6 +305,26 @@ def test_a_mesh_with_a_cavity_reads_outside_beyond_its_surface():
     assert np.abs(_brute_signed_distance(box, samples)).max() < 1e-9   # all on the outer surface
 
 
+@pytest.mark.parametrize("corner", [0, 1])
+def test_a_cavity_shell_folded_through_itself_leaves_the_outside_outside(corner):
+    # The Wuji hand's phalanx STL files: a cavity shell that crosses itself, where the
+    # closest feature's pseudo-normal points the wrong way, read points millimetres
+    # outside the link as inside, and the cover's spheres stood 5-6 mm out of the link.
+    box = trimesh.creation.box([0.02, 0.02, 0.02])
+    cavity = trimesh.creation.box([0.006] * 3)
+    vertices = np.array(cavity.vertices)
+    vertices[corner] *= -1.5  # one corner pulled through the opposite one: the shell folds
+    folded = trimesh.Trimesh(vertices, cavity.faces[:, ::-1], process=False)
+    geom = LinkGeometry("mesh", (), np.eye(4), trimesh.util.concatenate([box, folded]), source="link2 collision 0")
+    assert "hull" not in geom.source  # closed and consistently wound: kept as it is
+    points = np.random.default_rng(5).uniform(-0.05, 0.05, (600, 3))
+    # Before: 173 and 255 of the 600 points, most of them outside the box, read wrong.
+    np.testing.assert_allclose(geom.signed_distance(points), _brute_signed_distance(box, points), atol=1e-12)
+    cover = cover_link([geom], rng=np.random.default_rng(0))
+    # measured against the box alone (the solid), not the geometry under test
+    assert _independent_stray([LinkGeometry("mesh", (), np.eye(4), box)], cover.centers, cover.radii) <= MAX_STRAY
+
+
 def test_a_hand_whose_fingertip_meshes_have_cavities_finds_its_pads(tmp_path):
     from hand_files import write_allegro_like  # noqa: PLC0415 -- the test hands
 

@@ -25,8 +25,9 @@ __all__ = ["COVER_VERSION", "cover_key", "covers_from_disk", "hash_geometry"]
 
 #: Bump when :func:`.spheres.cover_link` changes what it returns for the same input.
 #: 2: a collision mesh's inward-facing inner shells (cavities) read outside again (covers of
-#: such meshes made before were wrong).
-COVER_VERSION = 2
+#: such meshes made before were wrong). 3: a shell lying inside a larger one is left out of
+#: the union (a cavity folding through itself read points outside the link as inside).
+COVER_VERSION = 3
 
 
 def cover_key(collision: Mapping[str, Sequence[LinkGeometry]], settings: Mapping[str, object]) -> str:

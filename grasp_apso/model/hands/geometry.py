@@ -6,7 +6,8 @@
 - ``signed_distance`` is exact: analytic for the primitives; for a mesh, the exact
   distance to its triangles with the sign from the closest feature's pseudo-normal
   (:mod:`.mesh_distance`); a mesh of several closed shells is their union (the least
-  signed distance over them), as the shells of CAD exports overlap. A mesh that is not watertight has no inside, so its convex
+  signed distance over them), as the shells of CAD exports overlap; a shell wholly inside
+  a larger one adds nothing and is left out. A mesh that is not watertight has no inside, so its convex
   hull stands for it (``source`` says so): the hull is what the fingers cannot enter.
 - ``to_trimesh`` tessellates the primitives finely (curved surfaces at most 0.12 % of
   the radius inside the true surface, watertight), in the link frame.
@@ -44,6 +45,8 @@ MAX_GEOMETRY_SPAN = 1.0
 _HULL_DIGITS = (6, 5)
 #: Components of a mesh with less volume than this are flat sheets, not solids (m^3).
 _FLAT_VOLUME = 1e-12
+#: A shell's points within this of a larger shell's surface count as inside it (m).
+_CONTAINED = 1e-7
 #: Tolerance of the rigid-transform check on ``origin``.
 _RIGID_TOL = 1e-6
 
@@ -201,7 +204,7 @@ class LinkGeometry:
         # parent's face normals cached, and ``invert()`` left them facing inward (trimesh
         # 5.2), so every point read inside (the XHAND's thumb tip: no pad found).
         parts = [_outward(part) if part.volume < 0 else part for part in parts]
-        return tuple(MeshDistance(part) for part in parts) or (MeshDistance(self.mesh),)
+        return _union_parts(parts) or (MeshDistance(self.mesh),)
 
     def to_trimesh(self) -> trimesh.Trimesh:
         """The surface in the LINK frame (a fresh copy: the caller may change it)."""
@@ -242,6 +245,22 @@ class LinkGeometry:
         for part in parts[1:]:
             np.minimum(out, part(p), out=out)
         return out
+
+
+def _union_parts(parts: list[trimesh.Trimesh]) -> tuple[MeshDistance, ...]:
+    """The exact distances of the closed shells ``parts`` (wound outward) whose union is the
+    solid, less every shell that lies wholly inside a larger one (its vertices and face
+    centres inside it): it adds nothing to the union, and a cavity shell that folds
+    through itself (the Wuji hand's phalanx STL files) reads points outside the link as
+    inside (the pseudo-normal sign is exact only for a shell that does not cross itself),
+    which its larger shell's distance would then not outvote (the union takes the least)."""
+    kept: list[MeshDistance] = []
+    for part in sorted(parts, key=lambda m: -abs(m.volume)):
+        probe = np.concatenate([np.asarray(part.vertices), np.asarray(part.triangles_center)])
+        if any(np.all(inside(probe) <= _CONTAINED) for inside in kept):
+            continue
+        kept.append(MeshDistance(part))
+    return tuple(kept)
 
 
 def _outward(mesh: trimesh.Trimesh) -> trimesh.Trimesh:

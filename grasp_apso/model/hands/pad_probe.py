@@ -36,8 +36,9 @@ from .pads import outer_surface_samples
 __all__ = ["probe_pad", "PROBE_RADII", "PROBE_VERSION"]
 
 #: Bump when :func:`probe_pad` (or the surface sampling it uses) changes what it returns for
-#: the same input.
-PROBE_VERSION = 1
+#: the same input. 2: the surface samples of a link with a folded cavity shell
+#: (:func:`.geometry._union_parts`).
+PROBE_VERSION = 2
 
 
 #: Probe sphere radii (m): small, middling and large objects.
