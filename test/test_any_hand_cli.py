@@ -140,3 +140,22 @@ def test_candidate_table_and_pictures_speak_of_the_hands_own_fingers(allegro, tm
     assert paper[2].split()[5] == "".join(initials[x.finger] for x in result.candidates[0].contacts)
     assert plotting._view_label("side", hand) == "side view (across the palm)"
     assert "little-finger side" in plotting._view_label("side", plotting.load_hand())
+
+
+def test_a_link_fixed_to_a_contacting_pad_is_not_reported_as_another_link_touching(allegro):
+    # The Revo2's thumb carries a 0.5 mm marker plate fixed to its pad link: it was listed
+    # under "other links touching", though it is the fingertip's own body.
+    from grasp_apso.presentation.summary import _general_touching  # noqa: PLC0415
+
+    hand = load_any_hand(allegro)
+    result = plan(builtin.builtin("sphere"), hand=hand, options=PlanOptions(particles=12, iterations=6, max_grasps=1),
+                  rng=np.random.default_rng(0))
+    fingers = {c.finger for c in result.contacts}
+    assert fingers
+    report = result.fcl
+    # every link touching: the contacting fingers' tips and distals (one body) are theirs,
+    # every other link is reported
+    everything = dataclasses.replace(report, touching=np.ones(len(report.links), dtype=bool))
+    shown = set(_general_touching(dataclasses.replace(result, fcl=everything), hand))
+    own = {f"{name}_{part}" for name in fingers for part in ("tip", "distal")}
+    assert shown == set(report.links) - own

@@ -27,7 +27,7 @@ from ..cache import cached
 from ..errors import HandDescriptionError
 from ..model.hands.fk_kernel import PRISMATIC, REVOLUTE
 
-__all__ = ["ParticleLayout", "HandTables", "hand_tables", "GROUP_SIZE"]
+__all__ = ["ParticleLayout", "HandTables", "hand_tables", "pad_body_links", "GROUP_SIZE"]
 
 #: Spheres per bounding group (culling unit of the look-ups).
 GROUP_SIZE = 12
@@ -145,6 +145,15 @@ def hand_tables(hand) -> HandTables:
     """The tables of ``hand`` (a :class:`grasp_apso.model.hands.HandModel`), cached by its
     ``source_hash``."""
     return cached("hand_tables", hand.source_hash, lambda: _build(hand))
+
+
+def pad_body_links(hand, f: int) -> set[str]:
+    """The links of finger ``f``'s pad body: its pad link and the links rigidly fixed to
+    it (one body: the Allegro-like tip is a small link on the distal, the Revo2's thumb
+    carries a marker plate). Their touching the object is the pad's."""
+    tables = hand_tables(hand)
+    body = {hand.links[i] for i, b in zip(tables.finger_link[f], tables.pad_body[f]) if i >= 0 and b}
+    return body | {hand.fingers[f].pad_link}
 
 
 def search_spheres(cover) -> tuple[np.ndarray, np.ndarray]:

@@ -225,13 +225,15 @@ def format_report(result: GraspResult, hand, friction: float,
 
 
 def _general_touching(result: GraspResult, hand) -> list[str]:
-    """A general hand's links that touch the object (python-fcl), except the pad links of
-    the fingers that make the contacts."""
+    """A general hand's links that touch the object (python-fcl), except the pad bodies
+    (the pad link and the links fixed to it) of the fingers that make the contacts."""
+    from ..geometry.any_hand_tables import pad_body_links
+
     report = result.fcl
     if report is None or not hasattr(report, "touching"):
         return []
     fingers = {c.finger for c in result.contacts}
-    pads = {f.pad_link for f in hand.fingers if f.name in fingers}
+    pads = set().union(*(pad_body_links(hand, i) for i, f in enumerate(hand.fingers) if f.name in fingers))
     return [link for link, t in zip(report.links, report.touching) if t and link not in pads]
 
 

@@ -50,13 +50,10 @@ def finger_distance(hc, q: np.ndarray, root: np.ndarray, shape, parts: np.ndarra
 def pad_body_rows(hand, hc, f: int) -> list[int]:
     """Rows of ``hc.links`` of finger ``f``'s pad body: its pad link and the links rigidly
     fixed to it (one body: the Allegro-like tip is a small link on the distal)."""
-    from ..geometry.any_hand_tables import hand_tables
+    from ..geometry.any_hand_tables import pad_body_links
 
-    tables = hand_tables(hand)  # cached per hand
-    finger = hand.fingers[f]
     links = list(hc.links)
-    body = {hand.links[i] for i, b in zip(tables.finger_link[f], tables.pad_body[f]) if i >= 0 and b}
-    return [links.index(name) for name in body | {finger.pad_link} if name in links]
+    return [links.index(name) for name in pad_body_links(hand, f) if name in links]
 
 
 def pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
