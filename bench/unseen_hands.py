@@ -379,7 +379,8 @@ def report(rows: list[dict]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--hands", nargs="+", type=Path, help="URDF files (default: the dex-urdf right hands)")
+    parser.add_argument("--hands", nargs="+", type=Path,
+                        help="URDF files, .urdf (default: the dex-urdf right hands)")
     parser.add_argument("--dex-urdf", type=Path, default=DEX, help="dex-urdf's robots/hands folder")
     parser.add_argument("--objects", nargs="+", default=list(OBJECTS))
     parser.add_argument("--seeds", type=int, default=1, help="seeds 0..N-1")
@@ -389,6 +390,11 @@ def main(argv: list[str] | None = None) -> int:
     hands = args.hands or [args.dex_urdf / h for h in DEX_HANDS if (args.dex_urdf / h).exists()]
     if not hands:
         parser.error(f"no hands: give --hands FILE... ({args.dex_urdf} has none of the dex-urdf hands)")
+    if others := [str(h) for h in hands if h.suffix.lower() != ".urdf"]:
+        # The independent check reads the description again with yourdfpy, a URDF reader;
+        # an MJCF's grasps are checked by MuJoCo itself in bench/held_rate.py.
+        parser.error(f"--hands: {', '.join(others)}: not a URDF (.urdf); this check re-reads the file with "
+                     "yourdfpy. Check an MJCF hand with bench/held_rate.py --hand FILE (MuJoCo reads it)")
     swarm = {"particles": 30, "iterations": 20} if args.quick else {}
     t0 = time.perf_counter()
     rows = []
