@@ -211,6 +211,46 @@ def test_package_uris_resolve_in_a_copied_description(files, tmp_path, prefix):
     assert any(g.kind == "mesh" for g in hand.collision["ring_distal"])
 
 
+def test_a_package_uri_that_resolves_nowhere_is_named_with_where_it_was_looked_for(files, tmp_path):
+    import shutil
+
+    # The meshes one folder up from the URDF and under no folder the package is named for
+    # (Unitree's copy of an Inspire hand; RuiYan's URDFs without their meshes): the error
+    # named only the fallback path, not the address the URDF wrote nor the file nearby.
+    shutil.copytree(Path(files["allegro"]).parent / "meshes", tmp_path / "copy" / "meshes")
+    (tmp_path / "copy" / "a" / "b" / "c" / "d").mkdir(parents=True)
+    flat = tmp_path / "copy" / "a" / "b" / "c"
+    for stl in (tmp_path / "copy" / "meshes").glob("*.stl"):
+        shutil.copy(stl, flat / stl.name)
+    text = Path(files["allegro"]).read_text().replace('filename="meshes/', 'filename="package://no_such_pkg/meshes/')
+    urdf = flat / "d" / "hand.urdf"
+    urdf.write_text(text)
+    with pytest.raises(HandDescriptionError) as err:
+        load_hand(urdf, spheres=False)
+    message = str(err.value)
+    assert "the URDF names package://no_such_pkg/meshes/" in message
+    assert f"no folder 'no_such_pkg' at or above {flat / 'd'}" in message
+    assert f"a file of that name is at {flat}/" in message
+
+
+def test_an_mjcf_whose_fingers_stand_beside_its_palm_is_refused_naming_them(tmp_path):
+    # OYMotion's ROHand MJCF: a palm body without joints, each finger a world body of its
+    # own; the hand was the subtree with the most joints (the thumb), refused as having
+    # fewer than two fingers without saying why.
+    fingers = "".join(f"""<body name="{f}_proximal" pos="{x} 0 0.05"><joint name="{f}_j1" axis="1 0 0" range="0 1.5"/>
+        <geom type="capsule" size="0.008 0.015" pos="0 0 0.015"/>
+        <body name="{f}_distal" pos="0 0 0.03"><joint name="{f}_j2" axis="1 0 0" range="0 1.5"/>
+          <geom type="capsule" size="0.007 0.01" pos="0 0 0.01"/></body></body>"""
+                      for f, x in (("index", 0.02), ("middle", 0.0), ("ring", -0.02)))
+    xml = tmp_path / "hand.xml"
+    xml.write_text(f"""<mujoco><worldbody><body name="palm"><geom type="box" size="0.04 0.01 0.045"/></body>
+      {fingers}</worldbody></mujoco>""")
+    with pytest.raises(HandDescriptionError, match=r"fewer than two fingers .* in hand\.xml: the hand was taken to be "
+                                                   r"world body 'index_proximal' .* 2 other world bodies with joints "
+                                                   r"\(middle_proximal, ring_proximal\) stand beside it"):
+        load_hand(xml, spheres=False)
+
+
 def test_batch_equals_single(hands):
     hand = hands["shadow"]
     q = np.random.default_rng(3).uniform(hand.lower, hand.upper, size=(4, hand.n_joints))

@@ -275,7 +275,27 @@ def read_mjcf(path: Path, max_mesh_bytes: int) -> RawHand:
     _equalities(mujoco, model, raw, joint_names, qpos0, depth)
     _tendons(mujoco, model, raw, joint_names, actuated, depth)
     _tendon_actuators(mujoco, model, raw, joint_names)
+    others = [_name(mujoco, model, OBJ.mjOBJ_BODY, b, "body") for b in tops if b != top and subtrees[b][1] > 0]
+    if others:
+        _one_tree(raw, _name(mujoco, model, OBJ.mjOBJ_BODY, top, "body"), others, path)
     return raw
+
+
+def _one_tree(raw: RawHand, top: str, others: list[str], path: Path) -> None:
+    """A file whose fingers are world bodies side by side instead of children of one palm
+    (OYMotion's ROHand: a palm body without joints, five jointed bodies beside it) leaves
+    the hand (the subtree with the most joints) one finger: refused, naming them."""
+    from .derive import find_root
+
+    try:
+        find_root(raw)
+    except HandDescriptionError as exc:
+        shown = ", ".join(others[:6]) + (f" and {len(others) - 6} more" if len(others) > 6 else "")
+        raise HandDescriptionError(
+            f"{exc} in {path.name}: the hand was taken to be world body {top!r} (the subtree with the most "
+            f"joints), and {len(others)} other world bodies with joints ({shown}) stand beside it in <worldbody>, "
+            "not under it: a hand is one body tree, its fingers children of its palm body (these hinge on the "
+            "world, and the palm cannot carry them)", field="hand_description") from None
 
 
 def _tendon_actuators(mujoco, model, raw, joint_names) -> None:

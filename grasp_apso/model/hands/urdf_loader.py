@@ -57,16 +57,29 @@ def resolve_mesh_path(uri: str, base_dir: Path) -> Path:
     return path if path.is_absolute() else base_dir / path
 
 
-def read_collision_mesh(path: Path, where: str, max_bytes: int, base_dir: Path | None = None) -> trimesh.Trimesh:
+def read_collision_mesh(path: Path, where: str, max_bytes: int, base_dir: Path | None = None,
+                        uri: str | None = None) -> trimesh.Trimesh:
     """A URDF collision mesh file in metres, the URDF's own ``scale`` not applied (the
     simulation reads the meshes MuJoCo cannot decode with it too). A file that is not there
-    is an error; with ``base_dir`` (the description's folder) it names a file of the same
-    name beside the description or in its ``meshes/`` folder (an exporter that wrote
-    ``filename="/base_link.STL"``): told, not taken, as RViz would not take it."""
+    is an error naming the file's ``uri`` as the URDF writes it (where a ``package://``
+    address was looked for); with ``base_dir`` (the description's folder) it names a file
+    of the same name beside the description, a folder up, or in their ``meshes/`` folders
+    (an exporter that wrote ``filename="/base_link.STL"``, a URDF copied out of its
+    package): told, not taken, as RViz would not take it."""
     if not path.is_file():
-        near = [c for c in (base_dir / path.name, base_dir / "meshes" / path.name) if c.is_file()] if base_dir else []
+        near = []
+        if base_dir is not None:
+            folders = (base_dir, base_dir / "meshes", base_dir.parent, base_dir.parent / "meshes")
+            near = [folder / path.name for folder in folders if (folder / path.name).is_file()]
         hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
-        raise HandDescriptionError(f"{where}: collision mesh file {path} not found{hint}", field=where)
+        named = ""
+        if uri is not None and uri.startswith("package://") and base_dir is not None:
+            package, _, rest = uri[len("package://"):].partition("/")
+            named = (f" (the URDF names {uri}: no folder {package!r} at or above {base_dir} holds {rest}, nor does "
+                     "the description's folder or the three above it; keep the description inside its package)")
+        elif uri is not None and uri != str(path):
+            named = f" (the URDF names {uri})"
+        raise HandDescriptionError(f"{where}: collision mesh file {path} not found{named}{hint}", field=where)
     if path.stat().st_size > max_bytes:
         raise HandDescriptionError(f"{where}: collision mesh {path.name} is over the size limit "
                                    f"({path.stat().st_size} > {max_bytes} bytes)", field=where)
@@ -105,7 +118,7 @@ def _geometry(collision, where: str, base_dir: Path, max_bytes: int) -> LinkGeom
         return LinkGeometry("capsule", (capsule.radius, capsule.length / 2.0), origin, None, where)
     if geom.mesh is not None:
         path = resolve_mesh_path(geom.mesh.filename, base_dir)
-        mesh = read_collision_mesh(path, where, max_bytes, base_dir).copy()
+        mesh = read_collision_mesh(path, where, max_bytes, base_dir, geom.mesh.filename).copy()
         scale = geom.mesh.scale
         if scale is not None:
             mesh.apply_scale(np.broadcast_to(np.asarray(scale, float), (3,)))
