@@ -8,6 +8,8 @@ contact count, the property GRG promises), not by the generator's own flags.
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -164,3 +166,23 @@ def test_a_particle_decodes_alone_and_the_shortcuts_of_its_variants_change_nothi
     assert off.any() and (~off).any()
     _same(strict.take(np.flatnonzero(~off)), d.take(np.flatnonzero(~off)))
     assert (strict.contact[off] != d.contact[off]).any(axis=1).all()
+
+
+def test_no_valid_draw_names_finger_joints_the_file_leaves_without_limits(setup, tmp_path):
+    # OYMotion's ROHand URDF writes each finger's linkage as free continuous joints (no
+    # <mimic>): no draw made two pad contacts, and the message blamed the object's size.
+    model, _ = setup
+    assert any_hand_grg._why_none(model.hand) == "the object may be too large or too small for this hand"
+    path = write_allegro_like(tmp_path, "none")
+    text = path.read_text()
+    for joint in ("index_joint_2", "index_joint_3", "thumb_joint_2", "thumb_joint_3"):  # continuous, no <limit>
+        text, count = re.subn(rf'(<joint name="{joint}" type=")revolute(">(?:(?!</joint>).)*?)\s*<limit [^>]*/>',
+                              r"\1continuous\2", text, flags=re.S)
+        assert count == 1
+    path.write_text(text)
+    hand = load_hand(path, spheres=False)
+    why = any_hand_grg._why_none(hand)
+    assert why.startswith("the file gives 4 finger joints no limits (")
+    for joint in ("index_joint_2", "index_joint_3", "thumb_joint_2", "thumb_joint_3"):
+        assert joint in why
+    assert "closed linkage as free joints" in why

@@ -164,6 +164,22 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
     return q
 
 
+def _why_none(hand) -> str:
+    """The likeliest reason no draw of ``hand`` made two pad contacts, for the message:
+    finger joints the file leaves without limits (continuous: [-pi, pi] taken) when it has
+    them, else the object's size."""
+    free = [j for finger in hand.fingers for j in finger.joints
+            if abs(hand.upper[hand.actuated_joints.index(j)] - hand.lower[hand.actuated_joints.index(j)]
+                   - 2.0 * np.pi) < 1e-9]
+    if free:
+        shown = ", ".join(free[:6]) + (f" and {len(free) - 6} more" if len(free) > 6 else "")
+        return (f"the file gives {len(free)} finger joints no limits ({shown}: continuous, [-pi, pi] taken), "
+                "which no real finger joint is: a description that writes a finger's closed linkage as free "
+                "joints (no <mimic> tying them) closes no finger as the hand does; describe the linkage's "
+                "driven joints with their limits and couplings")
+    return "the object may be too large or too small for this hand"
+
+
 def sample_any(model: AnyHandModel, shape: ShapeClass, n: int, rng: np.random.Generator) -> np.ndarray:
     """n GRG particles (n, D)."""
     t, lay = model.tables, model.layout
@@ -284,7 +300,7 @@ class AnyHandGenerator:
             raise PlanningError(
                 f"object: no valid grasp for hand {self.model.hand.name!r}: GRG decoded "
                 f"{self.evaluations} candidates (shape class {self.shape.name}) and none made two legal pad "
-                "contacts; the object may be too large or too small for this hand")
+                f"contacts; {_why_none(self.model.hand)}")
         if len(valid) >= k:
             return valid[:k]
         rest = others if others is not None and len(others) else sample_any(self.model, self.shape, k, self.rng)
