@@ -28,8 +28,8 @@ class SimulationSettings:
         The torsional one bounds the moment about the contact normal, ``torsional_friction
         * normal force``; a pressed patch of radius a carries ``2/3 mu a`` (uniform
         pressure), so 0.005 (MuJoCo's default) is a fingertip patch of 15 mm radius at mu
-        0.5, already a broad pad. DexGraspBench's 0.02 would be a 60 mm patch, wider than
-        any fingertip: its check holds grasps that spin on the pads in ours (measured in
+        0.5, already a broad pad. DexGraspBench's 0.02 would be a 60 mm patch (50 mm at its
+        mu 0.6), wider than any fingertip: its check holds grasps that spin on the pads in ours (measured in
         docs/any-hand-measurements.md), and the check keeps the physical value.
     condim : int
         4 (sliding + torsional friction) or 6 (+ rolling); 3 is accepted too.
