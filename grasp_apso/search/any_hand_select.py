@@ -45,8 +45,8 @@ from .any_hand_pads import final_decodings, pads_on
 from .any_hand_squeeze import (SOFT_SQUEEZE, balanced_squeeze, closing_imbalance, optional_module,
                                sim_settings, softer_squeeze, squeeze_posture)
 from .archive import wrist_groups, wrists_distinct
-from .exact_seat import pad_body_rows, pad_nearest, seat_fingers
-from .exact_touch import touch_pads
+from .exact_seat import pad_body_distance, pad_body_rows, pad_nearest, seat_fingers
+from .exact_touch import TOUCH_GAP, touch_pads
 from .ranking import grasp_quality, rank_order, ranking_class
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
 
@@ -232,12 +232,20 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     onto it (:func:`.exact_touch.touch_pads`): their contacts moved to where the links
     touch, the fingers that cannot touch with their pads (left where they are) no
     contacts; ``rest`` (F,) bool, the fingers the seating left resting on their pad body
-    away from the pad point (:func:`.exact_seat.seat_fingers`): their contacts moved to
-    where that body touches. The grasp's closure, closing forces and report follow.
-    Returns the posture (n,)."""
+    away from the pad point (:func:`.exact_seat.seat_fingers`), and the other contacts
+    farther than :data:`.exact_touch.TOUCH_GAP` from their pad body's exact geometry
+    (:func:`.exact_seat.pad_body_distance`): their contacts moved to where that body is
+    nearest the object. The grasp's closure, closing forces and report follow. Returns
+    the posture (n,)."""
     decoded = c.decoded
     q_new, moved, lost, points = touch_pads(hc, model.hand, q, root, obj, model.sdf, c.fcl, decoded.contact[0])
-    if rest is not None and (rest := rest & decoded.contact[0] & ~moved & ~lost).any():
+    rest = np.zeros(len(moved), dtype=bool) if rest is None else np.array(rest, dtype=bool)
+    # A contact the pad sphere made where the pad body is not (a sphere wider than a thin
+    # fingertip plate touches beside it, LEAP's) moves to where the pad body is nearest
+    # the object, as the fingers the seating left resting on their pad body.
+    for f in np.flatnonzero(decoded.contact[0] & ~moved & ~lost & ~rest):
+        rest[f] = pad_body_distance(model.hand, q_new, root, int(f), decoded.contact_points[0, f]) > TOUCH_GAP
+    if (rest := rest & decoded.contact[0] & ~moved & ~lost).any():
         for f in np.flatnonzero(rest):
             parts = np.flatnonzero(np.isin(hc.shapes.part_link, pad_body_rows(model.hand, hc, int(f))))
             points[f] = pad_nearest(hc, q_new, root, model.sdf, parts)[1]

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["seat_fingers", "finger_distance", "pad_body_rows", "pad_nearest", "SEAT_DEPTH", "SEAT_TRAVEL",
-           "SEAT_STEPS"]
+__all__ = ["seat_fingers", "finger_distance", "pad_body_distance", "pad_body_rows", "pad_nearest", "SEAT_DEPTH",
+           "SEAT_TRAVEL", "SEAT_STEPS"]
 
 #: m: a seated finger's exact geometry is at most this deep in the object (the python-fcl
 #: check allows 1 mm; half of it leaves room for the mesh distance's own error).
@@ -54,6 +54,26 @@ def pad_body_rows(hand, hc, f: int) -> list[int]:
 
     links = list(hc.links)
     return [links.index(name) for name in pad_body_links(hand, f) if name in links]
+
+
+def pad_body_distance(hand, q: np.ndarray, root: np.ndarray, f: int, point: np.ndarray) -> float:
+    """The exact signed distance (m, > 0 outside) from ``point`` (3,), object frame, to
+    finger ``f``'s pad body (its pad link and the links fixed to it: their collision
+    geometry, :meth:`grasp_apso.model.hands.LinkGeometry.signed_distance`) at posture q
+    (n,) with the root link at ``root`` (4, 4) in the object frame."""
+    from ..geometry.any_hand_tables import pad_body_links
+    from ..model.hands.spheres import union_signed_distance
+
+    poses = hand.link_transforms(np.asarray(q, float))
+    best = np.inf
+    for link in pad_body_links(hand, f):
+        geoms = hand.collision.get(link)
+        if not geoms:
+            continue
+        pose = np.asarray(root, float) @ poses[link]
+        local = np.linalg.solve(pose, np.append(np.asarray(point, float), 1.0))[:3]
+        best = min(best, float(union_signed_distance(geoms, local[None])[0]))
+    return best
 
 
 def pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
