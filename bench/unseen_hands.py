@@ -30,7 +30,10 @@ link at the candidate's ``wrist_pose``:
     (0 when they collide; (d) bounds how deep);
 (d) ``depth``: no link penetrates the object by more than 1 mm (python-fcl collide, the
     depth then measured from surface samples with trimesh's signed distance both ways; the
-    object's points inside a link only where the link's mesh is wound consistently).
+    object's points inside a link only where the link's mesh is wound consistently);
+(e) ``on_pad``: every contact the reply reports lies within 2 mm of its finger's pad body
+    (the pad link and the links the URDF joins to it by fixed joints): trimesh's distance
+    to their collision elements, placed by yourdfpy.
 
 Also reported, not checks: ``pad_sph``, candidates whose pad spheres (radius
 ``Finger.pad_radius`` through the pad point ``Finger.pad_center``, placed by yourdfpy,
@@ -76,7 +79,7 @@ TABLE_TOL = 0.0005   # m, below the clearance
 PAD_TOL = 0.002      # m, pad centre to the object's surface
 DEPTH_TOL = 0.001    # m, a link inside the object
 LIMIT_TOL = 1e-6     # rad or m
-CHECKS = ("table", "limits", "pads", "depth")
+CHECKS = ("table", "limits", "pads", "depth", "on_pad")
 #: Reported next to the checks: pad spheres on the surface, pad points themselves within 2 mm,
 #: force closure.
 INFO = ("pad_sph", "pad_pts", "fc")
@@ -135,6 +138,21 @@ class IndependentHand:
                 mesh.apply_scale(g.mesh.scale)
             return mesh
         return None
+
+    def rigid_body(self, link: str) -> set[str]:
+        """``link`` and every link joined to it by fixed joints (one rigid body), from the
+        URDF's own joints."""
+        body, todo = {link}, [link]
+        while todo:
+            current = todo.pop()
+            for joint in self.urdf.joint_map.values():
+                if joint.type != "fixed":
+                    continue
+                for a, b in ((joint.parent, joint.child), (joint.child, joint.parent)):
+                    if a == current and b not in body:
+                        body.add(b)
+                        todo.append(b)
+        return body
 
     def configuration(self, names, values) -> dict[str, float]:
         """yourdfpy's actuated joints: the given ones; every other at 0 clipped into its range."""
@@ -244,7 +262,7 @@ def penetration(link_mesh: trimesh.Trimesh, obj_mesh: trimesh.Trimesh, rng: np.r
 
 
 def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, clearance, rng) -> dict:
-    """The four independent checks of one candidate (see the module docstring)."""
+    """The five independent checks of one candidate (see the module docstring)."""
     names = hand.actuated_joints
     q, q_pre = np.asarray(cand.joint_positions)[:len(names)], np.asarray(cand.pre_grasp_positions)[:len(names)]
     cfg = ind.configuration(names, q)
@@ -269,8 +287,16 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
             p = penetration(placed, obj_mesh, rng)
             if p > depth:
                 depth, depth_link = p, link
-    pads, points = [], []
+    pads, points, on_body = [], [], []
     for contact in cand.contacts:
+        # (e) the reply's contact lies on its finger's pad body (the pad link and the links
+        # fixed to it): the nearest point of their collision elements within 2 mm
+        body = ind.rigid_body(hand.finger(contact.finger).pad_link)
+        placed = [m.copy().apply_transform(poses[link] @ origin) for link, origin, _, m in ind.elements if link in body]
+        on_body.append(float(trimesh.proximity.closest_point(trimesh.util.concatenate(placed),
+                                                             np.asarray(contact.position, float)[None])[1][0])
+                       if placed else math.inf)
+
         finger = hand.finger(contact.finger)
         point = (poses[finger.pad_link] @ np.append(np.asarray(finger.pad_center, float), 1.0))[:3]
         tip = trimesh.util.concatenate([m.copy().apply_transform(poses[link] @ origin)
@@ -294,6 +320,8 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
         "fc": bool(cand.force_closure),
         "depth_mm": 1000 * depth, "depth_link": depth_link, "depth": bool(depth <= DEPTH_TOL),
         "pads_mm": {link: round(1000 * g, 2) for link, g in link_gap.items()},
+        "on_pad_mm": [round(1000 * d, 2) for d in on_body],
+        "on_pad": bool(on_body) and max(on_body) <= PAD_TOL,
         "pads": bool(link_gap) and max(link_gap.values()) <= PAD_TOL,
         "force_closure": bool(cand.force_closure), "fingers": [c.finger for c in cand.contacts],
     }
@@ -373,7 +401,8 @@ def report(rows: list[dict]) -> dict:
             if failed:
                 print(f"  {r['hand']:24s} {r['object']:16s} s{r['seed']} g{c['rank']}: {','.join(failed)}; "
                       f"table {c['table_mm']:.1f} mm ({c['table_link']}), depth {c['depth_mm']:.1f} mm "
-                      f"({c['depth_link']}), pad links {c['pads_mm']}, pad spheres {c['pad_sph_mm']} {'; '.join(c['limit_violations'][:2])}")
+                      f"({c['depth_link']}), pad links {c['pads_mm']}, pad spheres {c['pad_sph_mm']}, contacts "
+                      f"{c['on_pad_mm']} mm {'; '.join(c['limit_violations'][:2])}")
     return summary
 
 
