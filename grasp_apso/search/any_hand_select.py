@@ -244,7 +244,8 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     # fingertip plate touches beside it, LEAP's) moves to where the pad body is nearest
     # the object, as the fingers the seating left resting on their pad body.
     for f in np.flatnonzero(decoded.contact[0] & ~moved & ~lost & ~rest):
-        rest[f] = pad_body_distance(model.hand, q_new, root, int(f), decoded.contact_points[0, f]) > TOUCH_GAP
+        gap = pad_body_distance(model.hand, q_new, root, int(f), decoded.contact_points[0, f])
+        rest[f] = TOUCH_GAP < gap < math.inf  # (inf: a pad body without collision geometry stays)
     if (rest := rest & decoded.contact[0] & ~moved & ~lost).any():
         for f in np.flatnonzero(rest):
             parts = np.flatnonzero(np.isin(hc.shapes.part_link, pad_body_rows(model.hand, hc, int(f))))
