@@ -45,7 +45,7 @@ from .any_hand_pads import final_decodings, pads_on
 from .any_hand_squeeze import (SOFT_SQUEEZE, balanced_squeeze, closing_imbalance, optional_module,
                                sim_settings, softer_squeeze, squeeze_posture)
 from .archive import wrist_groups, wrists_distinct
-from .exact_seat import pad_body_distance, pad_body_rows, pad_nearest, seat_fingers
+from .exact_seat import pad_body_distances, pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import TOUCH_GAP, touch_pads
 from .ranking import grasp_quality, rank_order, ranking_class
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
@@ -234,7 +234,7 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     contacts; ``rest`` (F,) bool, the fingers the seating left resting on their pad body
     away from the pad point (:func:`.exact_seat.seat_fingers`), and the other contacts
     farther than :data:`.exact_touch.TOUCH_GAP` from their pad body's exact geometry
-    (:func:`.exact_seat.pad_body_distance`): their contacts moved to where that body is
+    (:func:`.exact_seat.pad_body_distances`): their contacts moved to where that body is
     nearest the object. The grasp's closure, closing forces and report follow. Returns
     the posture (n,)."""
     decoded = c.decoded
@@ -243,9 +243,9 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     # A contact the pad sphere made where the pad body is not (a sphere wider than a thin
     # fingertip plate touches beside it, LEAP's) moves to where the pad body is nearest
     # the object, as the fingers the seating left resting on their pad body.
-    for f in np.flatnonzero(decoded.contact[0] & ~moved & ~lost & ~rest):
-        gap = pad_body_distance(model.hand, q_new, root, int(f), decoded.contact_points[0, f])
-        rest[f] = TOUCH_GAP < gap < math.inf  # (inf: a pad body without collision geometry stays)
+    kept = np.flatnonzero(decoded.contact[0] & ~moved & ~lost & ~rest)
+    gaps = pad_body_distances(model.hand, q_new, root, kept, decoded.contact_points[0, kept])
+    rest[kept] = (gaps > TOUCH_GAP) & np.isfinite(gaps)  # (inf: a pad body without collision geometry stays)
     if (rest := rest & decoded.contact[0] & ~moved & ~lost).any():
         for f in np.flatnonzero(rest):
             parts = np.flatnonzero(np.isin(hc.shapes.part_link, pad_body_rows(model.hand, hc, int(f))))

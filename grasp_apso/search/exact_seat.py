@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["seat_fingers", "finger_distance", "pad_body_distance", "pad_body_rows", "pad_nearest", "SEAT_DEPTH",
+__all__ = ["seat_fingers", "finger_distance", "pad_body_distances", "pad_body_rows", "pad_nearest", "SEAT_DEPTH",
            "SEAT_TRAVEL", "SEAT_STEPS"]
 
 #: m: a seated finger's exact geometry is at most this deep in the object (the python-fcl
@@ -56,24 +56,26 @@ def pad_body_rows(hand, hc, f: int) -> list[int]:
     return [links.index(name) for name in pad_body_links(hand, f) if name in links]
 
 
-def pad_body_distance(hand, q: np.ndarray, root: np.ndarray, f: int, point: np.ndarray) -> float:
-    """The exact signed distance (m, > 0 outside) from ``point`` (3,), object frame, to
-    finger ``f``'s pad body (its pad link and the links fixed to it: their collision
-    geometry, :meth:`grasp_apso.model.hands.LinkGeometry.signed_distance`) at posture q
-    (n,) with the root link at ``root`` (4, 4) in the object frame."""
+def pad_body_distances(hand, q: np.ndarray, root: np.ndarray, fingers: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The exact signed distances (k,) m, > 0 outside, from ``points`` (k, 3), object
+    frame, to the pad bodies of ``fingers`` (k,) int (each its pad link and the links
+    fixed to it: their collision geometry,
+    :meth:`grasp_apso.model.hands.LinkGeometry.signed_distance`) at posture q (n,) with
+    the root link at ``root`` (4, 4) in the object frame; inf for a pad body without
+    collision geometry."""
     from ..geometry.any_hand_tables import pad_body_links
     from ..model.hands.spheres import union_signed_distance
 
-    poses = hand.link_transforms(np.asarray(q, float))
-    best = np.inf
-    for link in pad_body_links(hand, f):
-        geoms = hand.collision.get(link)
-        if not geoms:
-            continue
-        pose = np.asarray(root, float) @ poses[link]
-        local = np.linalg.solve(pose, np.append(np.asarray(point, float), 1.0))[:3]
-        best = min(best, float(union_signed_distance(geoms, local[None])[0]))
-    return best
+    poses = hand.link_transforms(np.asarray(q, float))  # one forward kinematics for all
+    out = np.full(len(fingers), np.inf)
+    for i, (f, point) in enumerate(zip(fingers, np.asarray(points, float).reshape(-1, 3))):
+        for link in pad_body_links(hand, int(f)):
+            geoms = hand.collision.get(link)
+            if geoms:
+                pose = np.asarray(root, float) @ poses[link]
+                local = np.linalg.solve(pose, np.append(point, 1.0))[:3]
+                out[i] = min(out[i], float(union_signed_distance(geoms, local[None])[0]))
+    return out
 
 
 def pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) -> tuple[float, np.ndarray]:
