@@ -47,6 +47,7 @@ from ..cache import cached
 from ..errors import PlanningError
 from ..geometry.any_hand_decoder import AnyHandModel, decode_any
 from ..model.hand import rotation_to_wrist_angles
+from ..model.hands.description import CONTINUOUS_RANGE
 from .grg import ShapeClass
 
 __all__ = ["AnyHandGenerator", "sample_any"]
@@ -166,11 +167,11 @@ def _preshape(model: AnyHandModel, n: int, rng: np.random.Generator, fraction: f
 
 def _why_none(hand) -> str:
     """The likeliest reason no draw of ``hand`` made two pad contacts, for the message:
-    finger joints the file leaves without limits (continuous: [-pi, pi] taken) when it has
-    them, else the object's size."""
+    finger joints the file leaves without limits (continuous: :data:`CONTINUOUS_RANGE`
+    taken) when it has them, else the object's size."""
+    lower, upper = np.asarray(hand.lower, float), np.asarray(hand.upper, float)
     free = [j for finger in hand.fingers for j in finger.joints
-            if abs(hand.upper[hand.actuated_joints.index(j)] - hand.lower[hand.actuated_joints.index(j)]
-                   - 2.0 * np.pi) < 1e-9]
+            if (lower[k := hand.actuated_joints.index(j)], upper[k]) == CONTINUOUS_RANGE]
     if free:
         shown = ", ".join(free[:6]) + (f" and {len(free) - 6} more" if len(free) > 6 else "")
         return (f"the file gives {len(free)} finger joints no limits ({shown}: continuous, [-pi, pi] taken), "

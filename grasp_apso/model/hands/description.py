@@ -18,13 +18,16 @@ from ...errors import HandDescriptionError
 from .geometry import LinkGeometry
 from .model import Coupling, Motion, readonly
 
-__all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "lagging_couplings", "rigid"]
+__all__ = ["RawJoint", "RawLink", "RawHand", "Kinematics", "kinematics", "lagging_couplings", "rigid",
+           "CONTINUOUS_RANGE"]
 
 #: A leader whose followers' limits leave it a range narrower than this (rad or m) is held
 #: (:func:`_pinned_leaders`).
 PINNED_RANGE = 1e-3
 #: A joint whose own limits are this close (rad or m) is locked by its file: held there.
 LOCKED_RANGE = 1e-12
+#: The range a continuous joint without limits is given (rad), with a note.
+CONTINUOUS_RANGE = (-math.pi, math.pi)
 
 
 def rigid(rotation: np.ndarray, translation) -> np.ndarray:
@@ -241,7 +244,7 @@ def kinematics(raw: RawHand, held: set[str], hold_values: dict[str, float]) -> K
     for j in actuated:
         lo, hi = j.lower, j.upper
         if j.kind == "continuous" and (lo is None or hi is None):
-            lo, hi = -math.pi, math.pi
+            lo, hi = CONTINUOUS_RANGE
             raw.notes.append(f"joint {j.name}: continuous, range set to [-pi, pi]")
         if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
             raise HandDescriptionError(f"joint {j.name!r}: no limits ({j.source or j.kind})", field=j.name)
