@@ -17,6 +17,7 @@ import trimesh
 import yourdfpy
 
 from grasp_apso.geometry.any_hand_decoder import PAD_ON, decode_any, with_any_scene
+from grasp_apso.geometry.any_hand_tables import pad_body_links
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
 from grasp_apso.model.scene import Scene
@@ -25,6 +26,7 @@ from grasp_apso.search.any_hand_pads import align_closable
 from grasp_apso.search.any_hand_planner import prepare_any_hand
 from grasp_apso.search.grg import classify_shape
 from grasp_apso.search.options import PlanOptions
+from grasp_apso.search.planner import plan
 from hand_files import write_allegro_like
 
 PAD_TOLERANCE = 0.002  # m, the issue's
@@ -123,9 +125,6 @@ def test_every_returned_contact_lies_on_its_fingers_pad_body(tmp_path):
     hand = load_hand(urdf)
     robot = yourdfpy.URDF.load(str(urdf), load_meshes=False, load_collision_meshes=False,
                                build_collision_scene_graph=False)
-    from grasp_apso.geometry.any_hand_tables import pad_body_links  # noqa: PLC0415
-    from grasp_apso.search.planner import plan  # noqa: PLC0415
-
     distances = []
     for name in ("sphere", "cube", "barrel", "fish"):
         obj = builtin(name)
