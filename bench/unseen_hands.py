@@ -231,6 +231,15 @@ def _fcl_object(geom, pose: np.ndarray) -> fcl.CollisionObject:
     return fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3]))
 
 
+def object_collision(mesh: trimesh.Trimesh) -> fcl.CollisionObject:
+    """The object's mesh (planning frame) as a python-fcl collision object."""
+    bvh = fcl.BVHModel()
+    bvh.beginModel(len(mesh.vertices), len(mesh.faces))
+    bvh.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
+    bvh.endModel()
+    return fcl.CollisionObject(bvh, fcl.Transform())
+
+
 def table_object(plane: np.ndarray) -> fcl.CollisionObject:
     """A 4 x 4 x 1 m box whose top face lies on ``plane`` (a, b, c, d; normal into free space)."""
     n = np.asarray(plane[:3], float)
@@ -349,11 +358,7 @@ def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict) -> list[di
         obj_mesh.apply_transform(pose)
         scene = Scene.table_under(np.asarray(obj_mesh.vertices))
         table = table_object(np.asarray(scene.planes[0], float))
-        obj_bvh = fcl.BVHModel()
-        obj_bvh.beginModel(len(obj_mesh.vertices), len(obj_mesh.faces))
-        obj_bvh.addSubModel(np.asarray(obj_mesh.vertices, float), np.asarray(obj_mesh.faces, np.int32))
-        obj_bvh.endModel()
-        obj_fcl = fcl.CollisionObject(obj_bvh, fcl.Transform())
+        obj_fcl = object_collision(obj_mesh)
         for seed in range(seeds):
             row = {"hand": path.stem, "file": str(path), "object": name, "seed": seed, "load_s": load_s,
                    "held_mismatch": held_mismatch, "candidates": []}
