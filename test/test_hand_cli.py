@@ -25,7 +25,7 @@ def test_text_output_names_everything_a_user_checks(capsys):
     assert main([str(PAPER_YAML)]) == 0
     out = capsys.readouterr().out
     assert "root link (palm): palm   palm normal (root frame): [0.0, 0.0, 1.0]" in out
-    assert "held above the palm (fixed, not actuated for grasping): wrist_z=0, wrist_y=0, wrist_x=0" in out
+    assert "held above or beside the palm (fixed, not actuated for grasping): wrist_z=0, wrist_y=0, wrist_x=0" in out
     assert "finger thumb (thumb): tip thumb_tip" in out
     assert "index_pivot" in out and "pre-shape" in out and "+1 closes" in out
     assert "coupling: index_middle = 1.5 * index_distal + 0  (joint index_middle mimic; its own effort limit)" in out

@@ -53,6 +53,11 @@ def test_sensor_links_on_the_phalanges_are_no_fingers(allegro_file, tmp_path):
     path.write_text(text.replace("</robot>", sensors + "</robot>"))
     plain, sensed = load_hand(allegro_file, spheres=False), load_hand(path, spheres=False)
     assert len(sensed.links) == len(plain.links) + 12
+    # each sensor moves with its finger (before, those on the proximal and middle links
+    # were read with the palm, where the open finger holds them)
+    for finger in sensed.fingers:
+        f = finger.tip_link.removesuffix("_tip")
+        assert {f"{f}_proximal_fsr", f"{f}_middle_fsr", f"{f}_tip_fsr"} <= set(sensed.finger_links(finger))
     assert [f.tip_link for f in sensed.fingers] == [f.tip_link for f in plain.fingers]
     assert [f.closing for f in sensed.fingers] == [f.closing for f in plain.fingers]
     assert [f.is_thumb for f in sensed.fingers] == [f.is_thumb for f in plain.fingers]
@@ -101,11 +106,13 @@ def test_a_fingertip_with_only_a_marker_for_geometry_is_noted(allegro_file, tmp_
     assert not any("frame marker or a sensor" in n for n in load_hand(allegro_file, spheres=False).notes)
 
 
-def _write_covered(allegro_file: Path, folder: Path, thickness: float = 0.004) -> Path:
+def _write_covered(allegro_file: Path, folder: Path, thickness: float = 0.004, on_distal: bool = False) -> Path:
     """The Allegro-like hand with a skin on each fingertip: a box 8 mm along the finger and
     14 mm across fixed to the tip sphere over its pad, standing ``thickness`` proud of it
     (sunk 1 mm into the sphere). As on TetherIA's Aero Hand Open, whose cover links sit
-    over the pad side of each distal phalanx, the fingertip reaches farther than its skin."""
+    over the pad side of each distal phalanx, the fingertip reaches farther than its skin.
+    ``on_distal``: each skin fixed to the distal phalanx beside the tip link, at the same
+    place (DexRobot's DexHand021 fixes its tactile pad so, beside its fingertip's links)."""
     from scipy.spatial.transform import Rotation
 
     bare = load_hand(allegro_file, spheres=False)
@@ -117,8 +124,12 @@ def _write_covered(allegro_file: Path, folder: Path, thickness: float = 0.004) -
         rpy = Rotation.from_matrix(np.column_stack([along, np.cross(normal, along), normal])).as_euler("xyz")
         depth = thickness + 0.001
         at = np.asarray(finger.pad_center) + normal * (0.5 * depth - 0.001)
+        parent = finger.pad_link
+        if on_distal:  # the tip link hangs at (0, 0, length) from the distal link, unturned
+            parent = finger.pad_link.replace("_tip", "_distal")
+            at = at + bare.origins[bare.link_index(finger.pad_link)][:3, 3]
         skins += (f'  <joint name="{finger.pad_link}_skin_joint" type="fixed"><origin xyz="{at[0]} {at[1]} {at[2]}" '
-                  f'rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/><parent link="{finger.pad_link}"/>'
+                  f'rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/><parent link="{parent}"/>'
                   f'<child link="{finger.pad_link}_skin"/></joint>\n'
                   f'  <link name="{finger.pad_link}_skin"><collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry>'
                   f'<box size="0.008 0.014 {depth}"/></geometry></collision></link>\n')
@@ -127,17 +138,23 @@ def _write_covered(allegro_file: Path, folder: Path, thickness: float = 0.004) -
     return path
 
 
-def test_a_cover_fixed_over_a_fingertips_pad_carries_the_pad(allegro_file, tmp_path):
+@pytest.mark.parametrize("on_distal", [False, True], ids=["on_the_tip", "beside_the_tip"])
+def test_a_cover_fixed_over_a_fingertips_pad_carries_the_pad(allegro_file, tmp_path, on_distal):
     """A skin link fixed over each fingertip's pad, 4 mm proud of it (the Aero Hand Open's
     covers): the pad moves onto the skin's outer face, the fingertips stay the tips, a note
     says so per finger; and the plans of the cube on a table touch with the skins: each
     contacting finger's skin within 2 mm of the cube by python-fcl on the URDF's own boxes
-    placed by yourdfpy. Before, the pad stayed 4 mm under the skin."""
+    placed by yourdfpy. Before, the pad stayed 4 mm under the skin. The same with each skin
+    fixed to the distal phalanx beside the tip link (DexRobot's DexHand021 fixes its
+    fingertip's tactile pad and nail so): the skin is the finger's (it moves with it), and
+    carries the pad. Before, such a skin was no link of the finger's, read with the palm
+    where the open finger holds it, and the pad stayed under it."""
     bare = load_hand(allegro_file, spheres=False)
-    path = _write_covered(allegro_file, tmp_path)
+    path = _write_covered(allegro_file, tmp_path, on_distal=on_distal)
     hand = load_hand(path)
     assert [f.tip_link for f in hand.fingers] == [f.tip_link for f in bare.fingers]
     assert [f.pad_link for f in hand.fingers] == [f"{f.pad_link}_skin" for f in bare.fingers]
+    assert all(f.pad_link in hand.finger_links(f) for f in hand.fingers)
     for finger in hand.fingers:  # on the outer face (z = +2.5 mm in the skin's frame), near its middle
         assert abs(float(finger.pad_center[2]) - 0.0025) < 5e-4, finger.pad_center
         assert np.linalg.norm(np.asarray(finger.pad_center)[:2]) < 0.004, finger.pad_center
@@ -431,3 +448,50 @@ def test_a_gripper_opens_its_fingers_past_straight_to_take_a_wide_object(tmp_pat
     past = [sense * pre[hand.actuated_joints.index(joint)] for f in hand.fingers
             for joint, sense in zip(f.joints, f.closing) if sense]
     assert min(past) < -0.1, past
+
+
+def _limb(name: str, parent: str, child: str, xyz: tuple, size: tuple) -> str:
+    """A revolute joint ``name`` (about y, +-1 rad) from ``parent`` to a new link ``child``
+    holding a box of ``size`` (m)."""
+    return (f'  <joint name="{name}" type="revolute"><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" rpy="0 0 0"/>'
+            f'<parent link="{parent}"/><child link="{child}"/><axis xyz="0 1 0"/>'
+            f'<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n'
+            f'  <link name="{child}"><collision><origin xyz="0 0 -0.05" rpy="0 0 0"/><geometry>'
+            f'<box size="{size[0]} {size[1]} {size[2]}"/></geometry></collision></link>\n')
+
+
+def test_a_robot_holding_two_hands_is_refused_naming_their_palms(allegro_file, tmp_path):
+    """Two Allegro-like hands on the arms of a torso that also has a leg (a humanoid with
+    hands, as Unitree's G1 MJCF with hands): the derivation took the torso for the palm and
+    the foot for a finger; now the file is refused, naming both palms and
+    ``hand_config.root_link``. With ``root_link: palm`` it is the one hand: its four fingers
+    and joints, the rest of the robot (arms, leg, the other hand's fingers) held."""
+    import re
+
+    text = allegro_file.read_text()
+    body = text[text.index("<robot"):text.index("</robot>")]
+    body = body[body.index(">") + 1:]
+    other = re.sub(r'\b(name|link|joint)="([^"]+)"', r'\1="l_\2"', body)
+    robot = ('<?xml version="1.0"?>\n<robot name="two_hands">\n'
+             '  <link name="torso"><collision><geometry><box size="0.2 0.3 0.4"/></geometry></collision></link>\n'
+             + _limb("r_shoulder", "torso", "r_arm", (0.0, -0.2, 0.2), (0.05, 0.05, 0.1))
+             + _limb("l_shoulder", "torso", "l_arm", (0.0, 0.2, 0.2), (0.05, 0.05, 0.1))
+             + _limb("hip", "torso", "thigh", (0.0, 0.0, -0.2), (0.05, 0.05, 0.1))
+             + _limb("knee", "thigh", "foot", (0.0, 0.0, -0.1), (0.05, 0.05, 0.1))
+             + '  <joint name="r_mount" type="fixed"><origin xyz="0 0 -0.1"/><parent link="r_arm"/>'
+               '<child link="palm"/></joint>\n'
+             + '  <joint name="l_mount" type="fixed"><origin xyz="0 0 -0.1"/><parent link="l_arm"/>'
+               '<child link="l_palm"/></joint>\n'
+             + body + other + "</robot>\n")
+    path = tmp_path / "two_hands.urdf"
+    path.write_text(robot)
+    with pytest.raises(HandDescriptionError) as info:
+        load_hand(path, spheres=False)
+    assert info.value.field == "hand_description"
+    assert "2 hands" in str(info.value) and "l_palm" in str(info.value) and "hand_config.root_link" in str(info.value)
+    assert re.search(r"\bpalm\b", str(info.value).replace("l_palm", "")), str(info.value)
+    plain = load_hand(allegro_file, spheres=False)
+    one = load_hand(path, {"root_link": "palm"}, spheres=False)
+    assert [f.tip_link for f in one.fingers] == [f.tip_link for f in plain.fingers]
+    assert one.actuated_joints == plain.actuated_joints
+    assert {"r_shoulder", "l_shoulder", "hip", "knee", "l_index_joint_1"} <= set(one.held_joints)

@@ -9,8 +9,8 @@ Examples::
 Prints the root link (the palm), the palm normal, each finger with its joints and their
 closing senses (+1/-1, 0 = pre-shape), its pad (link, centre, radius), the collision
 spheres per link and how far they stray outside the exact geometry, the couplings, the
-joints held above the palm and the loader's notes. A user checks a new hand with it
-before planning. Exit status: 0 ok, 2 a bad description or config (one line naming the
+joints held above the palm (or beside it: the rest of a robot the hand is part of) and the
+loader's notes. A user checks a new hand with it before planning. Exit status: 0 ok, 2 a bad description or config (one line naming the
 element). Also runnable as ``python -m grasp_apso.tools.hand_cli``.
 """
 
@@ -81,7 +81,7 @@ def text(data: dict[str, Any]) -> str:
            f"root link (palm): {data['root_link']}   palm normal (root frame): {data['palm_normal']}"]
     if data["held_joints"]:
         held = ", ".join(f"{j}={v:g}" for j, v in data["held_joints"].items())
-        out.append(f"held above the palm (fixed, not actuated for grasping): {held}")
+        out.append(f"held above or beside the palm (fixed, not actuated for grasping): {held}")
     for f in data["fingers"]:
         out.append(f"finger {f['name']}{' (thumb)' if f['thumb'] else ''}: tip {f['tip_link']}")
         for joint, c in zip(f["joints"], f["closing"]):

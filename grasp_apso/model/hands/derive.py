@@ -83,25 +83,65 @@ def _has_geometry_below(name: str, children, by_name) -> bool:
 
 
 def find_root(raw: RawHand) -> str:
-    """The palm: the first link, from the top, where finger branches split (see module)."""
+    """The palm: the first link, from the top, where finger branches split (see module).
+    A file holding several hands (a humanoid's, both palms below its torso) is refused,
+    naming their palms, unless ``hand_config.root_link`` picks one."""
     children = _children(raw)
     by_name = {link.name: link for link in raw.links}
     current = raw.links[0].name
     for _ in range(len(raw.links)):
-        branches = []
-        for child in children.get(current, []):
-            leaves = [(n, c + len(by_name[child].joints)) for n, c in _leaves_with_joints(raw, child, children)]
-            if by_name[child].geoms and not _has_geometry_below(child, children, by_name):
-                leaves.append((child, len(by_name[child].joints)))
-            if any(count >= 2 for _, count in leaves):
-                branches.append(child)
+        branches = _finger_branches(current, raw, children, by_name)
         if len(branches) >= 2:
+            _refuse_several_hands(current, raw, children, by_name)
             return current
         if not branches:
             break
         current = branches[0]
     raise HandDescriptionError("hand_description: fewer than two fingers (chains of two or more movable "
                                "joints ending in a link with collision geometry)", field="hand_description")
+
+
+def _finger_branches(name: str, raw: RawHand, children, by_name) -> list[str]:
+    """The children of link ``name`` whose subtree holds a finger: a geometric leaf with
+    two or more movable joints from that child (its own included) down to it."""
+    branches = []
+    for child in children.get(name, []):
+        leaves = [(n, c + len(by_name[child].joints)) for n, c in _leaves_with_joints(raw, child, children)]
+        if by_name[child].geoms and not _has_geometry_below(child, children, by_name):
+            leaves.append((child, len(by_name[child].joints)))
+        if any(count >= 2 for _, count in leaves):
+            branches.append(child)
+    return branches
+
+
+def _refuse_several_hands(root: str, raw: RawHand, children, by_name) -> None:
+    """Refuse when two links below ``root`` where fingers split lie on separate branches
+    (neither above the other): the file holds several hands (Unitree's G1 with hands:
+    the pelvis would be the palm, its feet fingers). Nested splits (a knuckle turning two
+    fingers of one hand, the Schunk SDH's) are one hand."""
+    below = {root}
+    for link in raw.links:  # parents first
+        if link.parent in below:
+            below.add(link.name)
+    splits = [link.name for link in raw.links
+              if link.name in below and len(_finger_branches(link.name, raw, children, by_name)) >= 2]
+    lowest = [name for name in splits if not any(other != name and _is_above(name, other, by_name)
+                                                  for other in splits)]
+    if len(lowest) >= 2:
+        raise HandDescriptionError(
+            f"hand_description: the file holds {len(lowest)} hands (their palms, where their fingers split: "
+            f"{', '.join(lowest)}); give the palm of the one to plan with as hand_config.root_link "
+            "(--hand-config FILE with 'root_link: NAME')", field="hand_description")
+
+
+def _is_above(upper: str, lower: str, by_name) -> bool:
+    """Whether link ``upper`` is a strict ancestor of link ``lower``."""
+    parent = by_name[lower].parent
+    while parent is not None:
+        if parent == upper:
+            return True
+        parent = by_name[parent].parent
+    return False
 
 
 def finger_tips(raw: RawHand, root: str) -> list[str]:

@@ -157,17 +157,12 @@ def _derived(raw: RawHand, cfg: HandConfig, source_hash: str) -> tuple[HandModel
     root = cfg.get("root_link") or find_root(raw)
     if root not in names:
         raise HandDescriptionError(f"hand_config.root_link: {root!r} is not a link", field="hand_config.root_link")
-    above = set()
-    by_name = {link.name: link for link in raw.links}
-    link = by_name[root]
-    while link is not None:
-        above.update(j.name for j in link.joints)
-        link = by_name.get(link.parent) if link.parent is not None else None
+    held = _outside(raw, root)
     for joint in cfg.get("hold", {}):
-        if joint not in above:
-            raise HandDescriptionError(f"hand_config.hold.{joint}: not a joint above the root link {root}",
-                                       field="hand_config.hold")
-    kin = kinematics(raw, above, cfg.get("hold", {}))
+        if joint not in held:
+            raise HandDescriptionError(f"hand_config.hold.{joint}: not a joint above the root link {root} "
+                                       "(or beside it, outside the hand)", field="hand_config.hold")
+    kin = kinematics(raw, held, cfg.get("hold", {}))
     root_index = kin.links.index(root)
     bare = HandModel(
         name=raw.name, root_link=root, actuated_joints=kin.actuated, lower=kin.lower, upper=kin.upper,
@@ -272,6 +267,19 @@ def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[
     return tips, labels
 
 
+def _outside(raw: RawHand, root: str) -> set[str]:
+    """The joints the hand holds: those above ``root`` (the root link's own included) and
+    those of every link outside its subtree (a humanoid's legs and other arm when the root
+    is one palm: they move no finger)."""
+    inside = {root}
+    for link in raw.links:  # parents first
+        if link.parent in inside:
+            inside.add(link.name)
+    by_name = {link.name: link for link in raw.links}
+    out = {j.name for j in by_name[root].joints}
+    return out | {j.name for link in raw.links if link.name not in inside for j in link.joints}
+
+
 def _ancestors(raw: RawHand, link: str) -> set[str]:
     parents = {item.name: item.parent for item in raw.links}
     out = set()
@@ -287,8 +295,10 @@ def _finger(hand: HandModel, label: str, sem, cfg: HandConfig, palm_normal: np.n
         if pad["link"] not in hand.links:
             raise HandDescriptionError(f"hand_config.pads.{label}.link: {pad['link']!r} is not a link",
                                        field="hand_config.pads")
-        return Finger(label, sem.tip_link, sem.joints, sem.closing, pad["link"], readonly(pad["center"]),
-                      float(pad["radius"]), sem.is_thumb)
+        finger = Finger(label, sem.tip_link, sem.joints, sem.closing, pad["link"], readonly(pad["center"]),
+                        float(pad["radius"]), sem.is_thumb)
+        _check_pad_link(hand, finger)
+        return finger
     from .pad_probe import probe_pad
     from .pads import find_pad
 
@@ -306,9 +316,20 @@ def _finger(hand: HandModel, label: str, sem, cfg: HandConfig, palm_normal: np.n
     return Finger(label, sem.tip_link, sem.joints, sem.closing, name, readonly(center), float(radius), sem.is_thumb)
 
 
+def _check_pad_link(hand: HandModel, finger: Finger) -> None:
+    """Refuse a ``hand_config.pads`` link that the finger does not move (a link of another
+    finger or of the palm: the pad must move with the fingertip)."""
+    links = hand.finger_links(finger)
+    if finger.pad_link not in links:
+        raise HandDescriptionError(
+            f"hand_config.pads.{finger.name}.link: {finger.pad_link!r} does not move with finger {finger.name} "
+            f"(its links: {', '.join(links)}); give its tip link {finger.tip_link!r} or a link fixed to it",
+            field=f"hand_config.pads.{finger.name}")
+
+
 def _covered_pads(hand, cfg: HandConfig) -> list[str]:
     """Notes for the fingers whose pad moved onto a link covering it (:mod:`.pad_cover`)."""
-    return [f"finger {f.name}: a link fixed to its tip link {f.tip_link} covers the pad there by more than "
+    return [f"finger {f.name}: a link of its tip link {f.tip_link}'s body covers the pad there by more than "
             f"{1000 * COVERED:.0f} mm: the pad is on {f.pad_link} (give hand_config.pads.{f.name} if it is not)"
             for f in hand.fingers if f.pad_link != f.tip_link and f.name not in cfg.get("pads", {})]
 

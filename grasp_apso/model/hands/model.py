@@ -243,14 +243,32 @@ class HandModel:
         return tuple(reversed(out))
 
     def finger_links(self, finger: Finger | str) -> tuple[str, ...]:
-        """The links a finger moves: its chain below the root down to the tip, and the
-        tip's descendants."""
+        """The links a finger moves: its chain below the root down to the tip, then, in
+        ``links`` order (parents first), the tip's descendants and the links fixed to a
+        chain link the finger's joints move (no joint between them: a phalanx's shells, a
+        fingertip's nail or sensor plate fixed beside the tip link). DexRobot's DexHand021
+        fixes two shells to each phalanx and its tactile pad beside the fingertip; read as
+        the palm's, they stayed where the open finger holds them."""
         tip = finger.tip_link if isinstance(finger, Finger) else self.finger(finger).tip_link
         path = self.chain(tip)
         below = path[path.index(self.root_link) + 1:]
         tip_i = self.link_index(tip)
-        extra = [name for i, name in enumerate(self.links) if self._descends(i, tip_i) and i != tip_i]
+        moved = self._moved_chain(below)
+        extra = [name for i, name in enumerate(self.links) if name not in below and (
+            self._descends(i, tip_i) or self.rigid_base(i) in moved)]
         return tuple(below) + tuple(extra)
+
+    def _moved_chain(self, below: tuple[str, ...]) -> set[int]:
+        """Indices of the chain links ``below`` the root from the first one a joint moves on."""
+        first = next((k for k, name in enumerate(below) if self.motions[self.link_index(name)]), len(below))
+        return {self.link_index(name) for name in below[first:]}
+
+    def rigid_base(self, i: int) -> int:
+        """The index of the nearest link at or above link ``i`` (an index of ``links``) that
+        a joint moves: the link whose motion ``i`` shares (-1: none, the top)."""
+        while i >= 0 and not self.motions[i]:
+            i = self.link_parents[i]
+        return i
 
     def _descends(self, i: int, ancestor: int) -> bool:
         while i >= 0:
