@@ -151,6 +151,8 @@ def test_the_config_can_name_the_root_and_hold_joints(tmp_path):
     ({"root_link": "nowhere"}, "hand_config.root_link"),
     ({"palm_normal": [0, 0, 0]}, "hand_config.palm_normal"),
     ({"pads": {"ring": {"link": "x"}}}, "hand_config.pads.ring"),
+    # a link that does not move with the finger (another finger's tip): the search crashed
+    ({"pads": {"ring": {"link": "index_tip", "center": [0, 0, 0], "radius": 0.01}}}, "hand_config.pads.ring"),
     ({"fingers": {"a": "index_tip", "b": "nowhere"}}, "hand_config.fingers"),
     ({"fingers": {"a": "index_tip", "b": "palm"}}, "hand_config.fingers"),
     ({"hold": {"index_joint_1": 0.1}}, "hand_config.hold"),
@@ -374,7 +376,15 @@ def test_a_closed_linkage_in_an_mjcf_is_noted(tmp_path):
 def test_mjcf_meshes_fingers_and_size(tmp_path):
     hand = load_hand(_mjcf(tmp_path, 2, visual_missing=True), spheres=False)
     assert len(hand.fingers) == 2 and any("look.stl missing" in n for n in hand.notes)
-    with pytest.raises(HandDescriptionError, match="tipgeom.*tip.stl not found"):
+    with pytest.raises(HandDescriptionError, match="tipgeom.*tip.stl not found") as info:
+        load_hand(_mjcf(tmp_path, 2, collision_missing=True), spheres=False)
+    assert "a file of that name" not in str(info.value)
+    # the mesh lies in a folder of the description's tree its meshdir does not name (a
+    # model file copied out of its folder): the error says where, and the meshdir to give
+    (tmp_path / "robot" / "assets").mkdir(parents=True)
+    trimesh.creation.box((0.01, 0.01, 0.01)).export(tmp_path / "robot" / "assets" / "tip.stl")
+    with pytest.raises(HandDescriptionError, match=r"tip.stl not found \(a file of that name is at .*robot/assets/tip.stl: "
+                       r'<compiler meshdir="robot/assets"/> would find it'):
         load_hand(_mjcf(tmp_path, 2, collision_missing=True), spheres=False)
     with pytest.raises(HandDescriptionError, match="fewer than two fingers"):
         load_hand(_mjcf(tmp_path, 1), spheres=False)
@@ -449,3 +459,27 @@ def test_slides_and_several_hinges_per_body_pose_as_mujoco_does(tmp_path):
             pose = np.eye(4)
             pose[:3, :3], pose[:3, 3] = data.xmat[b].reshape(3, 3), data.xpos[b]
             np.testing.assert_allclose(batch[k, i], np.linalg.inv(root) @ pose, atol=1e-9, err_msg=link)
+
+
+def test_a_joint_held_to_two_joints_by_mjcf_equalities_leads_them(tmp_path):
+    """``f0_j1`` is ``joint1`` of two joint equalities, with ``f0_j2`` (a1 = 1) and ``f0_j3``
+    (a1 = 2): MuJoCo constrains the pairs, so ``f0_j1`` leads both, each following it by the
+    inverted relation, with a note (one of a Unitree G1 repository's Inspire hand files
+    couples its thumb so). Before, the file was refused: "follows two joints"."""
+    finger = """<body name="f{i}_1" pos="{x} 0 0.01"><joint name="f{i}_j1" axis="0 1 0" range="0 1.5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.04" size="0.008"/>
+        <body name="f{i}_2" pos="0 0 0.04"><joint name="f{i}_j2" axis="0 1 0" range="0 1.5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/>
+          <body name="f{i}_3" pos="0 0 0.03"><joint name="f{i}_j3" axis="0 1 0" range="0 1.5"/>
+            <geom type="capsule" fromto="0 0 0 0 0 0.02" size="0.007"/></body></body></body>"""
+    fingers = "\n".join(finger.format(i=i, x=0.015 * (1 if i else -1)) for i in range(2))
+    path = tmp_path / "shared.xml"
+    path.write_text(_MJCF.format(assets="", visual="", fingers=fingers).replace(
+        "</mujoco>", '<equality><joint name="a" joint1="f0_j1" joint2="f0_j2" polycoef="0 1 0 0 0"/>'
+                     '<joint name="b" joint1="f0_j1" joint2="f0_j3" polycoef="0 2 0 0 0"/></equality>\n</mujoco>'))
+    hand = load_hand(path, spheres=False)
+    got = {c.follower: (c.leader, c.multiplier, c.offset) for c in hand.couplings}
+    assert got["f0_j2"] == ("f0_j1", 1.0, 0.0) and got["f0_j3"] == ("f0_j1", 0.5, 0.0), got
+    assert "f0_j1" in hand.actuated_joints and not {"f0_j2", "f0_j3"} & set(hand.actuated_joints)
+    assert any(n.startswith("joint f0_j1: joint1 of 2 joint equalities (a, b): it leads f0_j2, f0_j3")
+               for n in hand.notes), hand.notes

@@ -22,6 +22,7 @@ mesh directories resolved; meshes as MuJoCo places them).
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,8 @@ __all__ = ["read_mjcf", "open_spec"]
 #: A limited fixed tendon couples its two joints when its range is at most this
 #: fraction of the length span its joints' ranges allow.
 _NARROW_TENDON = 0.25
+#: How many files :func:`_meshdir_hint` looks at in the description's folder tree at most.
+_SCAN_FILES = 20000
 
 
 def _quat_matrix(q: np.ndarray) -> np.ndarray:
@@ -74,7 +77,8 @@ def open_spec(path: Path, notes: list[str], max_mesh_bytes: int | None = None):
         users = [g for g in spec.geoms if g.meshname == mesh.name]
         colliding = [g for g in users if g.contype or g.conaffinity]
         if colliding:
-            raise HandDescriptionError(f"geom {colliding[0].name or mesh.name}: collision mesh file {file} not found",
+            raise HandDescriptionError(f"geom {colliding[0].name or mesh.name}: collision mesh file {file} not found"
+                                       f"{_meshdir_hint(path.parent, mesh.file)}",
                                        field=colliding[0].name or mesh.name)
         for g in users:
             spec.delete(g)
@@ -93,6 +97,29 @@ def _moving_tops(spec) -> list:
         if kinds and mujoco.mjtJoint.mjJNT_FREE not in kinds:
             tops.append(body)
     return tops
+
+
+def _meshdir_hint(folder: Path, written: str) -> str:
+    """Where a mesh file the MJCF names (``written``, as in its ``file``) lies in the tree of
+    the description's ``folder`` (at most :data:`_SCAN_FILES` files looked at), as a hint for
+    the error: a model file copied out of the folder its ``meshdir`` is relative to (one of
+    a Unitree G1 repository's Inspire hand files names ``meshes/inspire_hands/...`` beside
+    it, the meshes lying under ``unitree_g1/assets``). Empty when none is found."""
+    if Path(written).is_absolute():
+        return ""
+    tail = Path(written).parts
+    seen = 0
+    for top, _, names in os.walk(folder):
+        seen += len(names)
+        if seen > _SCAN_FILES:
+            break
+        if tail[-1] in names:
+            found = Path(top) / tail[-1]
+            if found.parts[-len(tail):] == tail:
+                base = Path(*found.parts[:-len(tail)]) if len(found.parts) > len(tail) else Path("/")
+                return (f" (a file of that name is at {found}: <compiler meshdir=\"{os.path.relpath(base, folder)}\"/> "
+                        "would find it; is the model file out of its folder?)")
+    return ""
 
 
 def _lift_fused_base(spec, path: Path, notes: list[str]):
@@ -273,6 +300,7 @@ def read_mjcf(path: Path, max_mesh_bytes: int) -> RawHand:
     raw.actuated_hint = actuated or None
     depth = {name: i for i, name in enumerate(j for link in raw.links for j in (x.name for x in link.joints))}
     _equalities(mujoco, model, raw, joint_names, qpos0, depth)
+    _lead_shared_followers(raw)
     _tendons(mujoco, model, raw, joint_names, actuated, depth)
     _tendon_actuators(mujoco, model, raw, joint_names)
     others = [_name(mujoco, model, OBJ.mjOBJ_BODY, b, "body") for b in tops if b != top and subtrees[b][1] > 0]
@@ -320,6 +348,33 @@ def _tendon_actuators(mujoco, model, raw, joint_names) -> None:
                          f"{_name(mujoco, model, mujoco.mjtObj.mjOBJ_TENDON, t, 'tendon')} ({total}): the planner moves "
                          "those joints each on its own (its simulation too, a servo per joint); the hand's own "
                          "controller commands only this sum of theirs, so send it the sum of the grasp's values")
+
+
+def _lead_shared_followers(raw) -> None:
+    """A joint that is ``joint1`` of several joint equalities (each ``joint1 = a0 + a1
+    joint2``) is held to each of their ``joint2``: MuJoCo reads an equality as a constraint
+    between the two, so the joint leads them, each following it by the inverted relation
+    (``joint2 = (joint1 - a0) / a1``), with a note. One of a Unitree G1 repository's Inspire
+    hand files couples the thumb so (``joint_r_thumb_proximal_2`` is ``joint1`` of the
+    equalities with the thumb's middle and distal joints), which read as one joint following
+    two was refused. Left as they are (and refused) when a relation cannot be inverted or
+    one of the other joints follows another joint too."""
+    equal = [c for c in raw.couplings if c.source.startswith("equality ") and not c.slack]
+    count: dict[str, int] = {}
+    for c in raw.couplings:
+        count[c.follower] = count.get(c.follower, 0) + 1
+    for joint in sorted({c.follower for c in equal if count[c.follower] > 1}):
+        mine = [c for c in raw.couplings if c.follower == joint]
+        if any(c not in equal or abs(c.multiplier) < 1e-9 or count.get(c.leader, 0) for c in mine):
+            continue
+        for c in mine:
+            raw.couplings[raw.couplings.index(c)] = Coupling(c.leader, joint, 1.0 / c.multiplier,
+                                                             0.0 - c.offset / c.multiplier, c.source)
+            count[c.leader] = 1
+        count[joint] = 0
+        raw.notes.append(f"joint {joint}: joint1 of {len(mine)} joint equalities "
+                         f"({', '.join(c.source.removeprefix('equality ') for c in mine)}): it leads "
+                         f"{', '.join(c.leader for c in mine)}, each by its equality inverted")
 
 
 def _equalities(mujoco, model, raw, joint_names, qpos0, depth) -> None:
