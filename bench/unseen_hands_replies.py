@@ -24,7 +24,8 @@ points and checks what they answer, as a user of them receives it::
 Every candidate then goes through the independent checks of ``bench/unseen_hands.py`` (the
 URDF read again with yourdfpy, python-fcl on its collision geometry: ``table``, ``limits``,
 ``pads``, ``depth``, ``on_pad``) and one more, ``names``: the reply's joint names are the
-movable joints of the URDF that are not mimic followers, each once. Prints per hand and
+movable joints of the URDF below the root link (the frame of ``grasp_pose``) that are not
+mimic followers, each once. Prints per hand and
 entry point the plans with a grasp and the candidates passing each check, and in how many
 plans the node and the CLI answered the same grasps (the same seed, object and table, each
 with its defaults: one planner behind both); writes
@@ -91,10 +92,20 @@ def _by_name(names, values, order) -> np.ndarray:
     return np.array([given.get(j, np.nan) for j in order])
 
 
-def names_check(ind: IndependentHand, names: tuple[str, ...]) -> bool:
-    """The reply's joint names are the URDF's movable joints that are not mimic followers, each once."""
+def names_check(ind: IndependentHand, names: tuple[str, ...], root: str) -> bool:
+    """The reply's joint names are the URDF's movable joints below ``root`` (the link the
+    reply's ``grasp_pose`` places) that are not mimic followers, each once (joints above the
+    root, a wrist or an arm, are held and not the hand's)."""
     urdf = ind.urdf
-    own = {n for n, j in urdf.joint_map.items() if j.type != "fixed" and j.mimic is None}
+    below, todo = {root}, [root]
+    while todo:
+        link = todo.pop()
+        for joint in urdf.joint_map.values():
+            if joint.parent == link and joint.child not in below:
+                below.add(joint.child)
+                todo.append(joint.child)
+    below.discard(root)  # the joint that moves the root itself is above it
+    own = {n for n, j in urdf.joint_map.items() if j.type != "fixed" and j.mimic is None and j.child in below}
     return len(names) == len(set(names)) and set(names) == own
 
 
@@ -259,7 +270,7 @@ def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict, vias: tupl
                     table = table_object(plane)
                     for r in replies or []:
                         checked = check_candidate(ind, hand, r, obj_mesh, obj_fcl, table, 0.005, rng)
-                        checked["names"] = names_check(ind, r.names)
+                        checked["names"] = names_check(ind, r.names, hand.root_link)
                         row["candidates"].append(checked)
                     ok = {c: sum(x[c] for x in row["candidates"]) for c in ("names",) + CHECKS + INFO}
                     print(f"  {path.stem:24s} {via:4s} {name:16s} seed {seed}: {len(row['candidates'])} cands "
