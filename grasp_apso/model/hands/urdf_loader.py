@@ -237,4 +237,27 @@ def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF
     if len(seen) != len(link_names):
         raise HandDescriptionError("hand_description: some links are not connected to the root link",
                                    field="hand_description")
+    raw.notes.extend(_inertia_notes(desc.links))
     return raw
+
+
+def _inertia_notes(links) -> list[str]:
+    """A note per link whose ``<inertia>`` is no physical inertia (a negative eigenvalue, or
+    not finite): MuJoCo refuses to compile such a file, so its grasps cannot be simulated
+    (``simulate``, the held-rate benchmark). Wonik's Allegro Hand V5 URDF gives six finger
+    links an ``ixy`` about 1000 times too large (eigenvalues down to -0.0057 kg m^2). The
+    planner itself reads no inertia."""
+    notes = []
+    for link in links:
+        inertial = link.inertial
+        if inertial is None or inertial.inertia is None:
+            continue
+        matrix = np.asarray(inertial.inertia, float)
+        if matrix.shape != (3, 3):
+            continue
+        eig = np.linalg.eigvalsh(0.5 * (matrix + matrix.T)) if np.all(np.isfinite(matrix)) else None
+        if eig is None or eig[0] < -1e-6 * abs(eig[-1]):  # zeros (a frame link's) are floored by the simulation
+            told = "not finite" if eig is None else f"eigenvalues {', '.join(f'{e:.3g}' for e in eig)} kg m^2"
+            notes.append(f"link {link.name}: its <inertia> is no physical inertia ({told}); MuJoCo refuses "
+                         "such a file, so its grasps cannot be simulated (check the off-diagonal terms)")
+    return notes
