@@ -37,6 +37,7 @@ them.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import statistics
@@ -86,6 +87,11 @@ class Reply:
     names: tuple[str, ...]
 
 
+def _tag(path: Path) -> str:
+    """A file name part unique to the hand file (two files may share a stem)."""
+    return f"{path.stem}_{hashlib.sha1(str(path).encode()).hexdigest()[:8]}"
+
+
 def _by_name(names, values, order) -> np.ndarray:
     """values given for ``names`` -> (len(order),) in ``order`` (NaN where missing)."""
     given = dict(zip(names, map(float, values)))
@@ -126,7 +132,7 @@ class NodeClient:
         env["ROS_LOG_DIR"] = log_dir
         env["PYTHONPATH"] = os.pathsep.join([str(REPO)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
         os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")})
-        self.log = open(os.path.join(log_dir, f"node_{path.stem}.log"), "w")
+        self.log = open(os.path.join(log_dir, f"node_{_tag(path)}.log"), "w")
         self.process = subprocess.Popen(
             [sys.executable, "-m", "grasp_apso.ros.node", "--ros-args", "-p", f"hand_description:={path}",
              "-p", f"allowed_mesh_dir:={MESH_DIR}"], cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT)
@@ -204,7 +210,7 @@ def node_replies(response, order) -> list[Reply]:
 def cli_plan(path: Path, name: str, seed: int, swarm: dict, folder: str) -> tuple[list[Reply] | None, np.ndarray, str]:
     """The CLI's candidates for one object (None when it answered none), its table plane
     (4,) and its message."""
-    out = os.path.join(folder, f"{path.stem}_{name}_{seed}.json")
+    out = os.path.join(folder, f"{_tag(path)}_{name}_{seed}.json")
     obj = ["--object", name] if name in BUILTINS else ["--mesh", str(MESH_DIR / f"{name}.stl")]
     extra = [a for k in ("particles", "iterations") if k in swarm for a in (f"--{k}", str(swarm[k]))]
     cmd = [sys.executable, "-m", "grasp_apso.tools.cli", "--hand", str(path), *obj, "--table", "--grasps", "5",
@@ -236,7 +242,22 @@ def _reorder(replies: list[Reply], order) -> list[Reply]:
 
 # ---- the run --------------------------------------------------------------------------------
 
-def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict, vias: tuple[str, ...], folder: str) -> list[dict]:
+def labels(paths: list[Path]) -> list[str]:
+    """A name per hand file: its stem, with as many parent folders as tell two files of one
+    stem apart (dex-urdf's and leap_description's ``leap_hand_right.urdf``)."""
+    out = []
+    for path in paths:
+        parts = path.parts
+        for depth in range(1, len(parts) + 1):
+            label = "/".join(parts[-depth:])[: -len(path.suffix) or None]
+            if sum(q.parts[-depth:] == parts[-depth:] for q in paths) == 1 or depth == len(parts):
+                break
+        out.append(label)
+    return out
+
+
+def run_hand(path: Path, label: str, objects: list[str], seeds: int, swarm: dict, vias: tuple[str, ...],
+             folder: str) -> list[dict]:
     from grasp_apso.model.hands.load import load_hand
     from grasp_apso.model.scene import Scene
 
@@ -253,7 +274,7 @@ def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict, vias: tupl
             table_plane = np.asarray(Scene.table_under(np.asarray(obj_mesh.vertices)).planes[0], float)
             for seed in range(seeds):
                 for via in vias:
-                    row = {"hand": path.stem, "file": str(path), "via": via, "object": name, "seed": seed,
+                    row = {"hand": label, "file": str(path), "via": via, "object": name, "seed": seed,
                            "candidates": []}
                     t0 = time.perf_counter()
                     try:
@@ -273,7 +294,7 @@ def run_hand(path: Path, objects: list[str], seeds: int, swarm: dict, vias: tupl
                         checked["names"] = names_check(ind, r.names, hand.root_link)
                         row["candidates"].append(checked)
                     ok = {c: sum(x[c] for x in row["candidates"]) for c in ("names",) + CHECKS + INFO}
-                    print(f"  {path.stem:24s} {via:4s} {name:16s} seed {seed}: {len(row['candidates'])} cands "
+                    print(f"  {label:24s} {via:4s} {name:16s} seed {seed}: {len(row['candidates'])} cands "
                           f"{row['seconds']:6.1f} s  " + " ".join(f"{c} {ok[c]}" for c in ("names",) + CHECKS)
                           + ("" if row["candidates"] else f"  ({message[:80]})"), flush=True)
                     rows.append(row)
@@ -353,8 +374,9 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rows = []
     with tempfile.TemporaryDirectory(prefix="grasp_apso_replies_") as folder:
-        for path in hands:
-            rows += run_hand(path.resolve(), args.objects, args.seeds, swarm, tuple(args.via), folder)
+        hands = [path.resolve() for path in hands]
+        for path, label in zip(hands, labels(hands)):
+            rows += run_hand(path, label, args.objects, args.seeds, swarm, tuple(args.via), folder)
     summary = report(rows)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s; command: {' '.join(sys.argv)}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
