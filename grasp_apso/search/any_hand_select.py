@@ -381,7 +381,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
         else:
             later.append(c)
-    if floor >= 2:  # an earlier round's force-closure grasp: only balanced ones (above) rank higher
+    robust_prior = any(c.robust_closure for c in prior)
+    if floor >= 2 and robust_prior:  # an earlier round's robust grasp: only balanced ones (above) rank higher
         later = []
     fragile: list[AnyChecked] = []
     rest: list[AnyChecked] = []
@@ -396,7 +397,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
         else:
             (fragile if c.force_closure else rest).append(c)
-    for c in fragile + (rest if floor < 1 else []):
+    # (an earlier round's force closure without a robust grasp: only robust ones rank higher)
+    for c in (fragile if floor < 2 else []) + (rest if floor < 1 else []):
         if len(kept) >= wanted:
             break
         if distinct(c.decoded):
