@@ -19,7 +19,7 @@ menagerie's, the other published hands of docs/hands.md and their variants), onl
 Aero hand's four files have covered pads (4.1-6.4 mm); the 26 hands whose loaded models
 are compared between changes are unchanged. Looking beside the tip link too (the links
 fixed to the phalanx it is fixed to) moved the pads of DexRobot's DexHand021 URDF alone
-of the 110 descriptions loaded on 2026-12-06 (the paper hand's URDF and the test hands
+of the 109 descriptions loaded on 2026-12-06 (the paper hand's URDF and the test hands
 included).
 """
 
