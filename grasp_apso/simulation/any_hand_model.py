@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, SimulationError
+from ..model.hands.urdf_loader import unphysical_inertia
 from ..model.scene import BOX, CYLINDER, SPHERE
 from .mjcf import matrix_to_quat, object_inertia, plane_frame
 from .settings import SimulationSettings
@@ -130,6 +131,7 @@ def _urdf_spec(text: str, base: Path):
     root = ET.fromstring(text.encode("utf-8") if isinstance(text, str) else text)
     for old in root.findall("mujoco"):
         root.remove(old)
+    _repair_inertias(root)
     ext = ET.SubElement(root, "mujoco")
     ET.SubElement(ext, "compiler", fusestatic="false", discardvisual="true", strippath="false")
     spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
@@ -138,6 +140,38 @@ def _urdf_spec(text: str, base: Path):
             path = resolve_mesh_path(mesh.file, base)
             mesh.file = str(path if path.suffix.lower() in _MUJOCO_MESHES else _decodable_copy(path))
     return spec
+
+
+_INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def _repair_inertias(root) -> list[str]:
+    """Raise to a floor the principal moments of every link ``<inertia>`` with a negative
+    one (:func:`~grasp_apso.model.hands.urdf_loader.unphysical_inertia`; a CAD export's off-diagonal terms larger than its moments: the
+    Allegro V5's ``link_2_0``), its principal axes kept; MuJoCo refuses to compile such a
+    link ("inertia must have positive eigenvalues") and ``balanceinertia`` does not mend
+    it. The floor: :data:`_MIN_INERTIA`, or a thousandth of the largest moment. Any other
+    inertia is left as written. Returns the links changed (the hand loader notes
+    them: :mod:`grasp_apso.model.hands.urdf_loader`)."""
+    changed = []
+    for link in root.findall("link"):
+        element = link.find("inertial/inertia")
+        if element is None:
+            continue
+        try:
+            xx, xy, xz, yy, yz, zz = (float(element.get(k, "0")) for k in _INERTIA_KEYS)
+        except ValueError:
+            continue  # MuJoCo names the attribute it cannot read
+        matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        if not np.all(np.isfinite(matrix)) or not unphysical_inertia(matrix):
+            continue  # (not finite: MuJoCo names it; a zero moment: raised by boundinertia)
+        values, vectors = np.linalg.eigh(matrix)
+        floor = max(_MIN_INERTIA, 1e-3 * float(values.max()))
+        fixed = (vectors * np.maximum(values, floor)) @ vectors.T
+        for key, (i, j) in zip(_INERTIA_KEYS, ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+            element.set(key, repr(float(fixed[i, j])))
+        changed.append(link.get("name", ""))
+    return changed
 
 
 #: Mesh files MuJoCo decodes itself; others (a ROS URDF's COLLADA files) go as STL copies.

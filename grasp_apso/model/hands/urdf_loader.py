@@ -255,9 +255,21 @@ def _inertia_notes(links) -> list[str]:
         matrix = np.asarray(inertial.inertia, float)
         if matrix.shape != (3, 3):
             continue
-        eig = np.linalg.eigvalsh(0.5 * (matrix + matrix.T)) if np.all(np.isfinite(matrix)) else None
-        if eig is None or eig[0] < -1e-6 * abs(eig[-1]):  # zeros (a frame link's) are floored by the simulation
+        if unphysical_inertia(matrix):
+            eig = np.linalg.eigvalsh(0.5 * (matrix + matrix.T)) if np.all(np.isfinite(matrix)) else None
             told = "not finite" if eig is None else f"eigenvalues {', '.join(f'{e:.3g}' for e in eig)} kg m^2"
             notes.append(f"link {link.name}: its <inertia> is no physical inertia ({told}); MuJoCo refuses "
-                         "such a file, so its grasps cannot be simulated (check the off-diagonal terms)")
+                         "such a link, so the simulation raises its principal moments to a floor (check the "
+                         "file's off-diagonal terms)")
     return notes
+
+
+def unphysical_inertia(matrix: np.ndarray) -> bool:
+    """Whether a link's inertia (3, 3) kg m^2 is no physical inertia: not finite, or a
+    principal moment negative beyond rounding (zeros, a frame link's, are floored by the
+    simulation as they are)."""
+    matrix = np.asarray(matrix, float)
+    if not np.all(np.isfinite(matrix)):
+        return True
+    eig = np.linalg.eigvalsh(0.5 * (matrix + matrix.T))
+    return bool(eig[0] < -1e-6 * abs(eig[-1]))
