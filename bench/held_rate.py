@@ -388,7 +388,7 @@ def lift_test(model, data, settings, ref_pos: np.ndarray, ref_quat: np.ndarray) 
 #: of what the disturbance may add), or near its planned pose (the disturbance dropped it).
 SHOVED_SHARE = 1.0 / 3.0
 DROP_PHASES = ("past the limits when squeezed", "moved a third of a limit by the closing and squeeze",
-               "in the disturbance")
+               "in the disturbance", "not simulated (an error, in sim_errors)")
 
 
 def drop_phase(c: dict) -> str | None:
@@ -399,6 +399,8 @@ def drop_phase(c: dict) -> str | None:
     # (runs saved before the phases were recorded have no squeezed shift: not counted)
     if c["held"] or "squeezed_shift_mm" not in c:
         return None
+    if "error" in c.get("failed", ()):  # the simulation did not run (MuJoCo refused the model)
+        return DROP_PHASES[3]
     limits = SimulationSettings()
     shift = c["squeezed_shift_mm"] / (1000 * limits.max_shift)
     turn = c["squeezed_turn_deg"] / math.degrees(limits.max_turn)
