@@ -421,6 +421,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="particles 30, iterations 20")
     parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "unseen_hands.json")
     args = parser.parse_args(argv)
+    hands = hand_files(args, parser)
+    swarm = {"particles": 30, "iterations": 20} if args.quick else {}
+    t0 = time.perf_counter()
+    rows = []
+    for path in hands:
+        rows += run_hand(path, args.objects, args.seeds, swarm)
+    write_results(args.out, swarm, report(rows), rows, t0)
+    return 0
+
+
+def hand_files(args, parser) -> list[Path]:
+    """The URDFs of ``--hands``, else the dex-urdf right hands of ``--dex-urdf``; a parser
+    error when there are none or one is not a URDF."""
     hands = args.hands or [args.dex_urdf / h for h in DEX_HANDS if (args.dex_urdf / h).exists()]
     if not hands:
         parser.error(f"no hands: give --hands FILE... ({args.dex_urdf} has none of the dex-urdf hands)")
@@ -429,17 +442,15 @@ def main(argv: list[str] | None = None) -> int:
         # an MJCF's grasps are checked by MuJoCo itself in bench/held_rate.py.
         parser.error(f"--hands: {', '.join(others)}: not a URDF (.urdf); this check re-reads the file with "
                      "yourdfpy. Check an MJCF hand with bench/held_rate.py --hand FILE (MuJoCo reads it)")
-    swarm = {"particles": 30, "iterations": 20} if args.quick else {}
-    t0 = time.perf_counter()
-    rows = []
-    for path in hands:
-        rows += run_hand(path, args.objects, args.seeds, swarm)
-    summary = report(rows)
+    return hands
+
+
+def write_results(out: Path, swarm: dict, summary: dict, rows: list[dict], t0: float) -> None:
+    """The run's total time and command printed, its rows and summary written as JSON to ``out``."""
     print(f"\ntotal {time.perf_counter() - t0:.0f} s; command: {' '.join(sys.argv)}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"argv": sys.argv[1:], "swarm": swarm, "summary": summary, "rows": rows},
-                                   indent=1, default=float))
-    return 0
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"argv": sys.argv[1:], "swarm": swarm, "summary": summary, "rows": rows},
+                              indent=1, default=float))
 
 
 if __name__ == "__main__":

@@ -53,8 +53,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from unseen_hands import (BUILTINS, CHECKS, DEX, DEX_HANDS, INFO, MESH_DIR, OBJECTS, REPO,  # noqa: E402
-                          IndependentHand, check_candidate, load_object, object_collision, table_object)
+from unseen_hands import (BUILTINS, CHECKS, DEX, INFO, MESH_DIR, OBJECTS, REPO, IndependentHand,  # noqa: E402
+                          check_candidate, hand_files, load_object, object_collision, table_object,
+                          write_results)
 
 VIAS = ("node", "cli")
 #: Bounds (s): the node's start (a new hand's covers are built on its first load) and one
@@ -361,12 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--via", nargs="+", choices=VIAS, default=list(VIAS))
     parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "unseen_hands_replies.json")
     args = parser.parse_args(argv)
-    hands = args.hands or [args.dex_urdf / h for h in DEX_HANDS if (args.dex_urdf / h).exists()]
-    if not hands:
-        parser.error(f"no hands: give --hands FILE... ({args.dex_urdf} has none of the dex-urdf hands)")
-    if others := [str(h) for h in hands if h.suffix.lower() != ".urdf"]:
-        parser.error(f"--hands: {', '.join(others)}: not a URDF (.urdf); this check re-reads the file with "
-                     "yourdfpy. Check an MJCF hand with bench/held_rate.py --hand FILE (MuJoCo reads it)")
+    hands = hand_files(args, parser)
     if unknown := [o for o in args.objects if o not in BUILTINS and not (MESH_DIR / f"{o}.stl").exists()]:
         parser.error(f"--objects: {', '.join(unknown)}: neither a built-in ({', '.join(BUILTINS)}) nor a mesh of "
                      f"{MESH_DIR}")
@@ -377,11 +373,7 @@ def main(argv: list[str] | None = None) -> int:
         hands = [path.resolve() for path in hands]
         for path, label in zip(hands, labels(hands)):
             rows += run_hand(path, label, args.objects, args.seeds, swarm, tuple(args.via), folder)
-    summary = report(rows)
-    print(f"\ntotal {time.perf_counter() - t0:.0f} s; command: {' '.join(sys.argv)}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"argv": sys.argv[1:], "swarm": swarm, "summary": summary, "rows": rows},
-                                   indent=1, default=float))
+    write_results(args.out, swarm, report(rows), rows, t0)
     return 0
 
 

@@ -11,7 +11,6 @@ for any URDF: ``bench/unseen_hands_replies.py``.
 """
 import os
 import subprocess
-import threading
 import time
 
 import fcl
@@ -26,7 +25,7 @@ from grasp_apso_interfaces.srv import PlanGrasp  # noqa: E402
 from shape_msgs.msg import Plane  # noqa: E402
 
 from hand_files import write_allegro_like  # noqa: E402
-from node_helpers import PYTHON, REPO_ROOT, identity_pose, ros_env, wait_future  # noqa: E402
+from node_helpers import PYTHON, REPO_ROOT, SpinningNode, identity_pose, ros_env, wait_future  # noqa: E402
 
 from grasp_apso.model import poses  # noqa: E402
 
@@ -72,35 +71,31 @@ def reply(tmp_path_factory):
     urdf_path = write_allegro_like(folder, coupled=True)
     mug = trimesh.load(os.path.join(MESH_DIR, 'mug.stl'), force='mesh')
     low = float(mug.vertices[:, 2].min())
-    env = ros_env()
+    log_path = folder / 'node.log'  # a file, not a pipe nobody reads while the node runs
+    log = open(log_path, 'w')
     proc = subprocess.Popen(
         [PYTHON, '-m', 'grasp_apso.ros.node', '--ros-args', '--params-file', PARAMS_FILE,
          '-p', f'hand_description:={urdf_path}', '-p', f'allowed_mesh_dir:={MESH_DIR}'],
-        cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        cwd=REPO_ROOT, env=ros_env(), stdout=log, stderr=subprocess.STDOUT)
     context = rclpy.context.Context()
     rclpy.init(context=context)
-    node = rclpy.create_node('grasp_apso_any_hand_process_client', context=context)
-    executor = rclpy.executors.SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    client_node = SpinningNode(context, 'grasp_apso_any_hand_process_client')
+    client_node.start()
     try:
-        client = node.create_client(PlanGrasp, '/grasp_apso/plan_grasp')
+        client = client_node.node.create_client(PlanGrasp, '/grasp_apso/plan_grasp')
         deadline = time.monotonic() + START_TIMEOUT
         while not client.wait_for_service(timeout_sec=1.0):
-            assert proc.poll() is None, proc.stdout.read()
+            assert proc.poll() is None, log_path.read_text()
             assert time.monotonic() < deadline, 'no plan_grasp service'
         req = PlanGrasp.Request()
         req.mesh_uri = os.path.join(MESH_DIR, 'mug.stl')
         req.object_pose = identity_pose(frame='world')
         req.support_planes = [Plane(coef=[0.0, 0.0, 1.0, -low])]
         req.particles, req.iterations, req.seed, req.max_grasps, req.clearance = 30, 10, 3, 3, CLEARANCE
-        res = wait_future(client.call_async(req), CALL_TIMEOUT)
+        res = wait_future(client.call_async(req), CALL_TIMEOUT, spinners=(client_node,))
         yield res, urdf_path, mug, low
     finally:
-        executor.shutdown(timeout_sec=5.0)
-        spinner.join(timeout=5.0)
-        node.destroy_node()
+        client_node.close()
         rclpy.shutdown(context=context)
         if proc.poll() is None:
             proc.terminate()
@@ -109,6 +104,7 @@ def reply(tmp_path_factory):
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait(timeout=5.0)
+        log.close()
 
 
 def test_the_node_answers_a_urdf_hand_with_grasps_that_pass_independent_checks(reply):
