@@ -179,7 +179,7 @@ def _edit(allegro_file: Path, tmp_path: Path, old: str, new: str, count: int = 1
 def test_an_inertia_that_is_no_inertia_is_noted(allegro_file, tmp_path):
     """An <inertia> with a negative eigenvalue (Wonik's Allegro Hand V5 URDF gives six finger
     links an ixy about 1000 times too large): MuJoCo refuses such a link, so the simulation
-    raises its principal moments (test_any_hand_simulation.py); the loader notes the link
+    keeps its moments and drops its products of inertia (test_any_hand_simulation.py); the loader notes the link
     (the plan does not read inertias)."""
     path = _edit(allegro_file, tmp_path, '<link name="index_distal">',
                  '<link name="index_distal"><inertial><mass value="0.0366"/><inertia ixx="3.8e-06" '

@@ -146,13 +146,17 @@ _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
 def _repair_inertias(root) -> list[str]:
-    """Raise to a floor the principal moments of every link ``<inertia>`` with a negative
-    one (:func:`~grasp_apso.model.hands.urdf_loader.unphysical_inertia`; a CAD export's off-diagonal terms larger than its moments: the
-    Allegro V5's ``link_2_0``), its principal axes kept; MuJoCo refuses to compile such a
-    link ("inertia must have positive eigenvalues") and ``balanceinertia`` does not mend
-    it. The floor: :data:`_MIN_INERTIA`, or a thousandth of the largest moment. Any other
-    inertia is left as written. Returns the links changed (the hand loader notes
-    them: :mod:`grasp_apso.model.hands.urdf_loader`)."""
+    """Drop the products of inertia of every link ``<inertia>`` with a negative principal
+    moment (:func:`~grasp_apso.model.hands.urdf_loader.unphysical_inertia`): off-diagonal
+    terms that no inertia with that diagonal can have (a physical one has ``|ixy| <=
+    sqrt(ixx iyy)``), as a CAD export's unit slip gives them (the Allegro V5's ``link_2_0``:
+    ``ixy`` about 1000 times its moments). MuJoCo refuses to compile such a link ("inertia
+    must have positive eigenvalues") and ``balanceinertia`` does not mend it; the moments
+    (the diagonal, at least :data:`_MIN_INERTIA`) are kept, then balanced by MuJoCo as any
+    other link's. Keeping the principal axes instead (the negative moment raised) keeps a
+    moment 1000 times too large: the V5 then held 4 of 21 best grasps. Any other inertia
+    is left as written. Returns the links changed (the hand loader notes them:
+    :mod:`grasp_apso.model.hands.urdf_loader`)."""
     changed = []
     for link in root.findall("link"):
         element = link.find("inertial/inertia")
@@ -165,11 +169,8 @@ def _repair_inertias(root) -> list[str]:
         matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         if not np.all(np.isfinite(matrix)) or not unphysical_inertia(matrix):
             continue  # (not finite: MuJoCo names it; a zero moment: raised by boundinertia)
-        values, vectors = np.linalg.eigh(matrix)
-        floor = max(_MIN_INERTIA, 1e-3 * float(values.max()))
-        fixed = (vectors * np.maximum(values, floor)) @ vectors.T
-        for key, (i, j) in zip(_INERTIA_KEYS, ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-            element.set(key, repr(float(fixed[i, j])))
+        for key, value in zip(_INERTIA_KEYS, (xx, 0.0, 0.0, yy, 0.0, zz)):
+            element.set(key, repr(max(value, _MIN_INERTIA) if key in ("ixx", "iyy", "izz") else value))
         changed.append(link.get("name", ""))
     return changed
 
