@@ -259,8 +259,8 @@ def _inertia_notes(links) -> list[str]:
             eig = np.linalg.eigvalsh(0.5 * (matrix + matrix.T)) if np.all(np.isfinite(matrix)) else None
             told = "not finite" if eig is None else f"eigenvalues {', '.join(f'{e:.3g}' for e in eig)} kg m^2"
             notes.append(f"link {link.name}: its <inertia> is no physical inertia ({told}); MuJoCo refuses "
-                         "such a link, so the simulation keeps its moments and drops its products of inertia (check the "
-                         "file's off-diagonal terms)")
+                         "such a link, so the simulation keeps its moments and drops its products of inertia "
+                         "(check the file's off-diagonal terms)")
     return notes
 
 
