@@ -149,9 +149,8 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         rounds = max(ANALYTIC_ROUNDS, NO_CLOSURE_ROUNDS)
     done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
     for round_ in range(rounds):
-        if not options.simulate and round_ >= ANALYTIC_ROUNDS and first_class >= CLOSURE_CLASS and any(
-                c.robust_closure for c in first_checked):
-            break  # past ANALYTIC_ROUNDS only while no search found robust force closure
+        if not options.simulate and round_ >= ANALYTIC_ROUNDS and first_class >= CLOSURE_CLASS:
+            break  # past ANALYTIC_ROUNDS only while no search found force closure
         # A later round's progress goes on from the earlier rounds' (iteration, evaluations,
         # elapsed): the progress topic and the result's history count every iteration once.
         shift = _Shift(done, evaluations, time.perf_counter() - t1)

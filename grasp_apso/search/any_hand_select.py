@@ -382,8 +382,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
         else:
             later.append(c)
-    robust_prior = any(c.robust_closure for c in prior)
-    if floor >= 2 and robust_prior:  # an earlier round's robust grasp: only balanced ones (above) rank higher
+    if floor >= 2:  # an earlier round's force-closure grasp: only balanced ones (above) rank higher
         later = []
     fragile: list[AnyChecked] = []
     rest: list[AnyChecked] = []
@@ -398,8 +397,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
         else:
             (fragile if c.force_closure else rest).append(c)
-    # (an earlier round's force closure without a robust grasp: only robust ones rank higher)
-    for c in (fragile if floor < 2 else []) + (rest if floor < 1 else []):
+    for c in fragile + (rest if floor < 1 else []):
         if len(kept) >= wanted:
             break
         if distinct(c.decoded):
