@@ -313,9 +313,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     grasp was not balanced, :func:`grasp_apso.search.any_hand_planner.plan_any_hand`). They
     join this round's, which must be distinct from them, and only grasps that can rank
     above the prior's best class are verified (their python-fcl checks are most of a
-    round's selection time): the balanced ones always, the robust force-closure ones when no
-    prior grasp is robust, the other force-closure ones only when no prior grasp is force
-    closure, the rest only when none is valid."""
+    round's selection time): the balanced ones always, the other force-closure ones only
+    when no prior grasp is force closure, the rest only when none is valid."""
     pool = [np.clip(swarm.best, model.lower, model.upper)]
     if len(archive):
         pool.extend(archive.x)
