@@ -93,6 +93,12 @@ class SimulationSettings:
         ``HandModel.servo_force_scale`` (the most loaded joint it drives bears this).
     joint_damping : float, N m s / rad; joint_armature : float, kg m^2
         Critically damped servos: damping ~ 2 sqrt(kp * armature).
+    max_joint_friction : float, N m (N for a slide)
+        A general hand's joint friction (MuJoCo's ``frictionloss``, a URDF's ``<dynamics
+        friction>``) is capped at this, a twentieth of ``max_torque``: the servos are this
+        check's, and a joint whose friction exceeds what its servo can exert never moves
+        (Wonik's Allegro V5 URDF gives 5-12 N m, for its own 15 N m actuators: its fingers
+        stayed where the closing started). The hands' own files give at most 0.001.
     impratio : float
         Frictional-to-normal impedance ratio (elliptic cones).
     solref, solimp : tuple of float
@@ -127,6 +133,7 @@ class SimulationSettings:
     max_torque: float = 1.0
     joint_damping: float = 0.1
     joint_armature: float = 0.001
+    max_joint_friction: float = 0.05
     impratio: float = 10.0
     solref: tuple[float, float] = (0.02, 1.0)
     solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)
@@ -143,6 +150,7 @@ class SimulationSettings:
             "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
             "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
             "max_torque": (1e-3, 1e3), "joint_damping": (0.0, 1e3), "joint_armature": (0.0, 1.0),
+            "max_joint_friction": (0.0, 1e3),
             "impratio": (1.0, 100.0),
         }
         for name, (low, high) in ranges.items():
