@@ -487,27 +487,34 @@ def test_a_urdf_inertia_with_a_negative_moment_is_raised_and_simulates(tmp_path)
     assert not result.held and np.isfinite(result.max_shift)  # it runs: an empty hand drops the sphere
 
 
-def test_a_joint_friction_no_servo_overcomes_is_capped_and_the_fingers_close(tmp_path):
+def test_gazebo_tuned_joint_friction_and_damping_are_capped_and_the_fingers_close(tmp_path):
     """Wonik's Allegro V5 URDF gives its finger joints ``<dynamics friction>`` of 5-12 N m
-    (for its own 15 N m actuators): against this check's servos (``max_torque`` 1 N m) the
-    fingers never moved. The friction is capped at ``settings.max_joint_friction``; a
-    smaller one (the Shadow's 0.001) is kept; the servos then reach a commanded posture."""
+    and damping of 3-10 N m s/rad (for its own 15 N m actuators): against this check's
+    servos (``max_torque`` 1 N m) the fingers never moved, and the servo gain, raised with
+    the damping to keep its time constant, was 100 times what the squeeze is computed for.
+    Both are capped (``settings.max_joint_friction``, ``max_joint_damping``); smaller ones
+    (the Shadow's friction 0.001) are kept; the servos then reach a commanded posture."""
     path = write_allegro_like(tmp_path, "none")
     root = ET.parse(path)
     for joint in root.getroot().iter("joint"):
         if joint.get("type") == "revolute":
-            friction = "0.001" if joint.get("name").startswith("thumb") else "10"
-            ET.SubElement(joint, "dynamics", damping="0.1", friction=friction)
+            thumb = joint.get("name").startswith("thumb")
+            ET.SubElement(joint, "dynamics", damping="0.3" if thumb else "10", friction="0.001" if thumb else "10")
     root.write(path)
     hand = load_hand(path, spheres=False)
     sc, settings = prepare_any_hand(hand, builtin("sphere"), FAR, ROOT, hand.open_configuration())
     m = sc.model
-    friction = {j: float(m.dof_frictionloss[m.jnt_dofadr[m.joint(j).id]]) for j in hand.actuated_joints}
-    assert friction["index_joint_1"] == pytest.approx(settings.max_joint_friction)
-    assert friction["thumb_joint_1"] == pytest.approx(0.001)
+    dof = {j: m.jnt_dofadr[m.joint(j).id] for j in hand.actuated_joints}
+    assert m.dof_frictionloss[dof["index_joint_1"]] == pytest.approx(settings.max_joint_friction)
+    assert m.dof_frictionloss[dof["thumb_joint_1"]] == pytest.approx(0.001)
+    assert m.dof_damping[dof["index_joint_1"]] == pytest.approx(settings.max_joint_damping)
+    assert m.dof_damping[dof["thumb_joint_1"]] == pytest.approx(0.3)
+    gain = m.actuator_gainprm[m.actuator("servo:index_joint_1").id, 0]
+    assert gain == pytest.approx(settings.max_joint_damping / (settings.joint_damping / settings.kp))
     target = hand.closed_configuration(0.5)
     sc.data.ctrl[:] = target
-    mujoco.mj_step(m, sc.data, nstep=int(round(1.0 / settings.timestep)))
+    # (3 s: a servo at its torque limit against damping 1 turns at most 1 rad/s)
+    mujoco.mj_step(m, sc.data, nstep=int(round(3.0 / settings.timestep)))
     reached = np.array([sc.data.qpos[m.jnt_qposadr[m.joint(j).id]] for j in hand.actuated_joints])
     assert np.abs(reached - target).max() < 0.05, dict(zip(hand.actuated_joints, reached - target))
 

@@ -28,7 +28,8 @@
   Joint armature and damping are raised to at least the settings' values: a servo is
   stable at the protocol's 4 ms step only with enough inertia on the joint (a bare
   fingertip of 1e-6 kg m^2 under 2 N m/rad would need a 0.7 ms step); joint friction is
-  capped at ``settings.max_joint_friction``, which the servos overcome.
+  capped at ``settings.max_joint_friction``, which the servos overcome, and damping at
+  ``settings.max_joint_damping``.
 - The object: a free body of convex parts (:mod:`.convex`), mass ``settings.object_mass``
   at its centre of mass with the uniform-density inertia; its geoms and the scene's
   geoms collide with every hand geom that collides at all (all contype/conaffinity bits)
@@ -442,7 +443,8 @@ def _add_servos(spec, hand, settings: SimulationSettings) -> None:
 
     for joint in spec.joints:
         joint.armature = max(float(np.max(joint.armature)), settings.joint_armature)
-        joint.damping = np.maximum(np.asarray(joint.damping, float), settings.joint_damping)
+        joint.damping = np.clip(np.asarray(joint.damping, float), settings.joint_damping,
+                                max(settings.max_joint_damping, settings.joint_damping))
         # (settings.max_joint_friction: a friction the servo cannot overcome freezes the joint)
         joint.frictionloss = min(float(joint.frictionloss), settings.max_joint_friction)
     # The servo's time constant damping / kp is the settings' (0.05 s) on a joint whose

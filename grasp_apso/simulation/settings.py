@@ -93,6 +93,11 @@ class SimulationSettings:
         ``HandModel.servo_force_scale`` (the most loaded joint it drives bears this).
     joint_damping : float, N m s / rad; joint_armature : float, kg m^2
         Critically damped servos: damping ~ 2 sqrt(kp * armature).
+    max_joint_damping : float, N m s / rad (N s / m for a slide)
+        A general hand's joint damping is capped at this (robosuite's Inspire gives 1): a
+        servo's gain is raised on a joint damped more, to keep its time constant, and
+        Gazebo-tuned URDF damping (Wonik's Allegro V5: 3-10) then made 100 times stiffer
+        servos than the squeeze is computed for, which pushed the object out of the hand.
     max_joint_friction : float, N m (N for a slide)
         A general hand's joint friction (MuJoCo's ``frictionloss``, a URDF's ``<dynamics
         friction>``) is capped at this, a twentieth of ``max_torque``: the servos are this
@@ -133,6 +138,7 @@ class SimulationSettings:
     max_torque: float = 1.0
     joint_damping: float = 0.1
     joint_armature: float = 0.001
+    max_joint_damping: float = 1.0
     max_joint_friction: float = 0.05
     impratio: float = 10.0
     solref: tuple[float, float] = (0.02, 1.0)
@@ -150,7 +156,7 @@ class SimulationSettings:
             "max_settle_time": (0.0, 20.0), "rest_speed": (0.0, 1.0), "rest_spin": (0.0, 10.0),
             "timestep": (1e-4, 0.02), "check_every": (1e-4, 1.0), "kp": (1e-3, 1e4),
             "max_torque": (1e-3, 1e3), "joint_damping": (0.0, 1e3), "joint_armature": (0.0, 1.0),
-            "max_joint_friction": (0.0, 1e3),
+            "max_joint_damping": (0.0, 1e3), "max_joint_friction": (0.0, 1e3),
             "impratio": (1.0, 100.0),
         }
         for name, (low, high) in ranges.items():
