@@ -242,11 +242,11 @@ def read_urdf(text: str, base_dir: Path, max_mesh_bytes: int, label: str = "URDF
 
 
 def _inertia_notes(links) -> list[str]:
-    """A note per link whose ``<inertia>`` is no physical inertia (a negative eigenvalue, or
-    not finite): MuJoCo refuses to compile such a file, so its grasps cannot be simulated
-    (``simulate``, the held-rate benchmark). Wonik's Allegro Hand V5 URDF gives six finger
-    links an ``ixy`` about 1000 times too large (eigenvalues down to -0.0057 kg m^2). The
-    planner itself reads no inertia."""
+    """A note per link whose ``<inertia>`` is no physical inertia (:func:`unphysical_inertia`):
+    MuJoCo refuses to compile such a link, so the simulation keeps its moments and drops its
+    products of inertia (:mod:`grasp_apso.simulation.any_hand_model`). Wonik's Allegro Hand
+    V5 URDF gives six finger links an ``ixy`` about 1000 times too large (eigenvalues down
+    to -0.0057 kg m^2). The planner itself reads no inertia."""
     notes = []
     for link in links:
         inertial = link.inertial
