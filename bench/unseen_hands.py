@@ -107,11 +107,7 @@ class IndependentHand:
                 mesh = self._trimesh(col.geometry)
                 if mesh is None:
                     continue
-                geom = fcl.BVHModel()
-                geom.beginModel(len(mesh.vertices), len(mesh.faces))
-                geom.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
-                geom.endModel()
-                self.elements.append((name, origin, geom, mesh))
+                self.elements.append((name, origin, mesh_bvh(mesh), mesh))
 
     def _resolve(self, filename: str) -> Path:
         find = re.match(r"^(?:file://)?\$\(find [^)]+\)/(.*)$", filename)  # xacro's package folder
@@ -231,13 +227,18 @@ def _fcl_object(geom, pose: np.ndarray) -> fcl.CollisionObject:
     return fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3]))
 
 
-def object_collision(mesh: trimesh.Trimesh) -> fcl.CollisionObject:
-    """The object's mesh (planning frame) as a python-fcl collision object."""
+def mesh_bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
+    """A triangle mesh as python-fcl geometry (its own frame)."""
     bvh = fcl.BVHModel()
     bvh.beginModel(len(mesh.vertices), len(mesh.faces))
     bvh.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
     bvh.endModel()
-    return fcl.CollisionObject(bvh, fcl.Transform())
+    return bvh
+
+
+def object_collision(mesh: trimesh.Trimesh) -> fcl.CollisionObject:
+    """The object's mesh (planning frame) as a python-fcl collision object."""
+    return fcl.CollisionObject(mesh_bvh(mesh), fcl.Transform())
 
 
 def table_object(plane: np.ndarray) -> fcl.CollisionObject:

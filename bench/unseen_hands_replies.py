@@ -219,9 +219,9 @@ def cli_plan(path: Path, name: str, seed: int, swarm: dict, folder: str) -> tupl
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(
         os.pathsep) if p]))
     run = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=CLI_RUN)
-    if not os.path.exists(out):
-        return None, np.full(4, np.nan), (run.stderr or run.stdout).strip().splitlines()[-1:][0] if (
-            run.stderr or run.stdout).strip() else f"exit {run.returncode}"
+    if not os.path.exists(out):  # no reply: the last line it printed says why
+        said = (run.stderr or run.stdout).strip().splitlines()
+        return None, np.full(4, np.nan), said[-1] if said else f"exit {run.returncode}"
     data = json.loads(Path(out).read_text())
     plane = np.asarray(data["scene"]["support_planes"][0], float)
     result = next(iter(data["results"].values()))
@@ -261,10 +261,12 @@ def run_hand(path: Path, label: str, objects: list[str], seeds: int, swarm: dict
              folder: str) -> list[dict]:
     from grasp_apso.model.hands.load import load_hand
     from grasp_apso.model.scene import Scene
+    from grasp_apso.tunables import default
 
     hand = load_hand(str(path))
     ind = IndependentHand(path)
     order = list(hand.actuated_joints)
+    clearance = float(default("clearance"))  # both entry points plan with the default
     rng = np.random.default_rng(0)
     node = NodeClient(path, folder) if "node" in vias else None
     rows = []
@@ -289,9 +291,9 @@ def run_hand(path: Path, label: str, objects: list[str], seeds: int, swarm: dict
                         replies, plane, message = None, table_plane, f"{type(exc).__name__}: {exc}"
                     row.update(seconds=time.perf_counter() - t0, message=message)
                     row["joints"] = [r.joint_positions.tolist() for r in replies or []]
-                    table = table_object(plane)
+                    table = table_object(plane) if replies else None
                     for r in replies or []:
-                        checked = check_candidate(ind, hand, r, obj_mesh, obj_fcl, table, 0.005, rng)
+                        checked = check_candidate(ind, hand, r, obj_mesh, obj_fcl, table, clearance, rng)
                         checked["names"] = names_check(ind, r.names, hand.root_link)
                         row["candidates"].append(checked)
                     ok = {c: sum(x[c] for x in row["candidates"]) for c in ("names",) + CHECKS + INFO}

@@ -369,7 +369,7 @@ def _lead_shared_followers(raw) -> None:
             continue
         for c in mine:
             raw.couplings[raw.couplings.index(c)] = Coupling(c.leader, joint, 1.0 / c.multiplier,
-                                                             0.0 - c.offset / c.multiplier, c.source)
+                                                             -c.offset / c.multiplier, c.source)
             count[c.leader] = 1
         count[joint] = 0
         raw.notes.append(f"joint {joint}: joint1 of {len(mine)} joint equalities "
