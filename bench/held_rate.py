@@ -252,8 +252,7 @@ def run_case(task: tuple) -> dict:
                                                    obj.characteristic_radius)[1] if len(pts) >= 2 else 1.0
             features.update(_simulate_any(hand, obj, pose, cand, scene, options, row))
             if dexgraspbench:
-                features["dgb_held"], features["dgb_lift_held"] = _held_dexgraspbench(hand, obj, pose, cand, scene,
-                                                                                      options, row)
+                features.update(_held_dexgraspbench(hand, obj, pose, cand, scene, options, row))
         else:
             from grasp_apso.simulation import simulate_grasp
 
@@ -311,18 +310,26 @@ def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     return out
 
 
-def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> tuple[bool, bool]:
+def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     """Whether a general hand's candidate holds with :func:`dexgraspbench_settings` in the
-    six directions, and in the tabletop test (:func:`lift_test`) from the same squeezed
-    state (an error is recorded in ``row["sim_errors"]`` and counted as dropped)."""
+    six directions (``dgb_held``), and in the tabletop test (:func:`lift_test`) from the
+    same squeezed state (``dgb_lift_held``); where the object stood after the closing and
+    after the squeeze (``dgb_grasp_*`` / ``dgb_squeezed_*`` shift mm and turn deg, as
+    :func:`_simulate_any`). An error is recorded in ``row["sim_errors"]`` and counted as
+    dropped."""
     from grasp_apso.simulation.any_hand import simulate_any_hand
-    from grasp_apso.simulation.phases import planned_reference
+    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
+    from grasp_apso.simulation.phases import angle_between, planned_reference
 
     settings = dexgraspbench_settings()
     ref_pos, ref_quat = planned_reference(pose, obj.center_of_mass)
     seen: dict = {}
 
     def observe(phase, model, data) -> None:
+        if phase in ("grasp", "squeezed"):
+            body = model.body(OBJECT_BODY).id
+            seen[phase] = (1000 * float(np.linalg.norm(data.xipos[body] - ref_pos)),
+                           math.degrees(angle_between(ref_quat, data.xquat[body])))
         if phase == "squeezed":
             seen["lift"] = lift_test(model, data, settings, ref_pos, ref_quat)[0]
 
@@ -331,8 +338,13 @@ def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> tup
                                 cand.squeeze_positions, scene, options.friction, settings=settings, observer=observe)
     except Exception as exc:  # recorded, counted as dropped
         row.setdefault("sim_errors", []).append(f"dexgraspbench: {type(exc).__name__}: {exc}")
-        return False, False
-    return bool(sim.held), bool(seen.get("lift", False))
+        sim = None
+    out = {"dgb_held": bool(sim is not None and sim.held),
+           "dgb_lift_held": bool(sim is not None and seen.get("lift", False)),
+           "dgb_failed": [d for d, _, _, ok in sim.per_direction if not ok] if sim else ["error"]}
+    for phase in ("grasp", "squeezed"):
+        out[f"dgb_{phase}_shift_mm"], out[f"dgb_{phase}_turn_deg"] = seen.get(phase, (math.inf, math.inf))
+    return out
 
 
 #: DexGraspBench's tabletop test (``src/task/eval_func/tabletop_mocap.py``): after the
@@ -391,19 +403,20 @@ DROP_PHASES = ("past the limits when squeezed", "moved a third of a limit by the
                "in the disturbance", "not simulated (an error, in sim_errors)")
 
 
-def drop_phase(c: dict) -> str | None:
-    """Where a dropped general-hand candidate went wrong (one of :data:`DROP_PHASES`);
-    None when it held or its phases were not recorded (the paper hand's check)."""
+def drop_phase(c: dict, check: str = "") -> str | None:
+    """Where a dropped general-hand candidate went wrong (one of :data:`DROP_PHASES`) in our
+    check, or with ``check="dgb_"`` in the check with DexGraspBench's parameters; None when
+    it held or its phases were not recorded (the paper hand's check)."""
     from grasp_apso.simulation.settings import SimulationSettings  # the check's own limits
 
     # (runs saved before the phases were recorded have no squeezed shift: not counted)
-    if c["held"] or "squeezed_shift_mm" not in c:
+    if c.get(f"{check}held", True) or f"{check}squeezed_shift_mm" not in c:
         return None
-    if "error" in c.get("failed", ()):  # the simulation did not run (MuJoCo refused the model)
+    if "error" in c.get(f"{check}failed", ()):  # the simulation did not run (MuJoCo refused the model)
         return DROP_PHASES[3]
-    limits = SimulationSettings()
-    shift = c["squeezed_shift_mm"] / (1000 * limits.max_shift)
-    turn = c["squeezed_turn_deg"] / math.degrees(limits.max_turn)
+    limits = SimulationSettings()  # both checks have the same limits
+    shift = c[f"{check}squeezed_shift_mm"] / (1000 * limits.max_shift)
+    turn = c[f"{check}squeezed_turn_deg"] / math.degrees(limits.max_turn)
     if max(shift, turn) >= 1.0:
         return DROP_PHASES[0]
     return DROP_PHASES[1] if max(shift, turn) >= SHOVED_SHARE else DROP_PHASES[2]
@@ -447,9 +460,10 @@ def summarise(rows: list[dict]) -> dict:
         if cands and all(key in c for c in cands):
             out[f"{check}_best_held"] = sum(r["candidates"][0][key] for r in planned)
             out[f"{check}_candidates_held"] = sum(c[key] for c in cands)
-    phases = [drop_phase(r["candidates"][0]) for r in planned]
-    if any(phases):
-        out["best_dropped_by_phase"] = {p: phases.count(p) for p in DROP_PHASES}
+    for check in ("", "dgb_"):
+        phases = [drop_phase(r["candidates"][0], check) for r in planned]
+        if any(phases):
+            out[f"{check}best_dropped_by_phase"] = {p: phases.count(p) for p in DROP_PHASES}
     return out
 
 
@@ -498,9 +512,10 @@ def print_report(rows: list[dict], algorithms: list[str], objects: list[str]) ->
                     lift += (f"; with its parameters: best {_rate(s['dgb_lift_best_held'], planned)}, candidates "
                              f"{_rate(s['dgb_lift_candidates_held'], s['candidates'])}")
                 print(lift)
-            if "best_dropped_by_phase" in s:
-                print(f"{'':22s} best grasps dropped, the object when squeezed: "
-                      + ", ".join(f"{n} {p}" for p, n in s["best_dropped_by_phase"].items()))
+            for check, which in (("", ""), ("dgb_", " with DexGraspBench's parameters")):
+                if f"{check}best_dropped_by_phase" in s:
+                    print(f"{'':22s} best grasps dropped{which}, the object when squeezed: "
+                          + ", ".join(f"{n} {p}" for p, n in s[f"{check}best_dropped_by_phase"].items()))
             summary[f"{alg}/{label}"] = s
         summary[f"{alg}/per_object"] = per_object
     return summary

@@ -24,7 +24,7 @@ cones, :func:`grasp_apso.quality.closing.balanced_forces`; ``q + J^T f / kp``,
 :func:`grasp_apso.quality.closing.squeeze_toward_forces`). With
 ``simulate`` the verified grasps are checked in MuJoCo
 (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
-held or all were tried: a grasp that drops is tried once more with a softer squeeze
+held or all were tried: a grasp that drops is tried once more with a firmer squeeze
 (:mod:`.any_hand_squeeze`), and the grasps below the best class, left out without
 ``simulate``, are simulated last.
 """
@@ -42,8 +42,8 @@ from ..quality.closure_proof import Epsilon
 from ..quality.measures import closure_wrenches
 from ..quality.robustness import normal_uncertainty, robust_wrenches
 from .any_hand_pads import final_decodings, pads_on
-from .any_hand_squeeze import (SOFT_SQUEEZE, balanced_squeeze, closing_imbalance, optional_module,
-                               sim_settings, softer_squeeze, squeeze_posture)
+from .any_hand_squeeze import (FIRM_SQUEEZE, balanced_squeeze, closing_imbalance, firmer_squeeze,
+                               optional_module, sim_settings, squeeze_posture)
 from .archive import wrist_groups, wrists_distinct
 from .exact_seat import pad_body_distances, pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import TOUCH_GAP, touch_pads
@@ -490,8 +490,8 @@ def hold_score(checked: list[AnyChecked]) -> np.ndarray:
 
 def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[list, list, str]:
     """Simulate the verified grasps in their order until ``max_grasps`` held (or every one
-    was tried, or ``should_stop``); one that drops is simulated again with a softer squeeze
-    (:func:`.any_hand_squeeze.softer_squeeze`, at most ``max_grasps`` of them), which its
+    was tried, or ``should_stop``); one that drops is simulated again with a firmer squeeze
+    (:func:`.any_hand_squeeze.firmer_squeeze`, at most ``max_grasps`` of them), which its
     reply keeps when that holds. Returns the grasps to rank (the held ones and those not
     simulated; when none held, the first dropped ones), up to ``max_grasps``, their results
     (None: not simulated) and a note. The ``fallback`` grasps (below the others' class,
@@ -503,7 +503,7 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
     held, other = [], []
     # at most max_grasps dropped grasps are tried again (a search whose grasps all drop,
     # the bowl or the flat marker, would double its simulations)
-    stopped, failure, softened, retried = False, "", 0, 0
+    stopped, failure, firmed, retried = False, "", 0, 0
     for position, c in enumerate(checked):
         if len(held) >= options.max_grasps:
             break
@@ -515,14 +515,14 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
         try:
             result = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
                                            c.squeeze, scene, options.friction, should_stop=should_stop)
-            if not result.held and retried < options.max_grasps:  # squeezed more gently (SOFT_SQUEEZE)
+            if not result.held and retried < options.max_grasps:  # squeezed harder (FIRM_SQUEEZE)
                 retried += 1
-                squeeze, forces = softer_squeeze(model, c, obj, options.friction)
-                soft = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
+                squeeze, forces = firmer_squeeze(model, c, obj, options.friction)
+                firm = sim.simulate_any_hand(model.hand, obj, pose, pose @ d.root[0], d.q_pre[0], d.q[0],
                                              squeeze, scene, options.friction, should_stop=should_stop)
-                if soft.held:
-                    c.squeeze, c.forces, result = squeeze, forces, soft
-                    softened += 1
+                if firm.held:
+                    c.squeeze, c.forces, result = squeeze, forces, firm
+                    firmed += 1
         except SimulationError as exc:  # the grasps stay, not simulated, and the reply says why
             failure = str(exc)
             other.extend((k, None) for k in checked[position:])
@@ -538,8 +538,8 @@ def _simulate(model, checked, pose, obj, scene, options, should_stop) -> tuple[l
     if held and dropped:
         note = "; ".join(n for n in (note, f"{len(dropped)} {'grasp' if len(dropped) == 1 else 'grasps'} that "
                                            "dropped in the simulation left out") if n)
-    if softened:
-        note = "; ".join(n for n in (note, f"{softened} held with a softer squeeze ({SOFT_SQUEEZE:g} of the force)")
+    if firmed:
+        note = "; ".join(n for n in (note, f"{firmed} held with a firmer squeeze ({FIRM_SQUEEZE:.3g} of the force)")
                          if n)
     if failure:
         note = f"not simulated: {failure}"

@@ -4,7 +4,7 @@ forces it exerts (DexGraspBench / BODex: ``q_squeeze = q_grasp + K^-1 J^T f``).
 A grasp whose contacts can take balanced forces is squeezed with friction-balanced contact
 forces of mean normal part ``squeeze_force`` (:func:`balanced_squeeze`); the others by
 the simulation's uniform ``squeeze`` along every closing joint (:func:`squeeze_posture`).
-With ``simulate`` a grasp that drops is tried again with :func:`softer_squeeze`.
+With ``simulate`` a grasp that drops is tried again with :func:`firmer_squeeze`.
 """
 
 from __future__ import annotations
@@ -17,15 +17,20 @@ import numpy as np
 
 from ..quality.closing import balanced_forces, closing_forces, squeeze_toward_forces
 
-__all__ = ["SOFT_SQUEEZE", "SQUEEZE", "optional_module", "sim_settings", "closing_imbalance", "balanced_squeeze",
-           "squeeze_posture", "softer_squeeze"]
+__all__ = ["FIRM_SQUEEZE", "SQUEEZE", "optional_module", "sim_settings", "closing_imbalance", "balanced_squeeze",
+           "squeeze_posture", "firmer_squeeze"]
 
 #: With ``simulate``: a grasp that dropped is simulated once more with its squeeze at this
 #: share of the force (the balanced forces' ``squeeze_force``, or the uniform squeeze's
-#: angle); when that holds, the grasp is held and its reply carries that squeeze. Of 61
-#: dropped candidates (Shadow, Inspire, Allegro-like, 21 objects, seed 0) 11 held at half
-#: the force, none at 0.25, 1.5 or no squeeze that did not also hold at half.
-SOFT_SQUEEZE = 0.5
+#: angle); when that holds, the grasp is held and its reply carries that squeeze. 5/3 of
+#: the balanced squeeze's 2.4 N is 4 N, the force this check's squeeze aimed at before it
+#: was set to hold under a stiffer client's servos too (``SimulationSettings.squeeze_force``):
+#: grasps of some hands (the Shadow's) need the firmer squeeze in this check. Measured
+#: (``bench/held_rate.py --simulate``, seeds 0-2, 63 plans, best grasps held, candidates
+#: held), retried at 5/3 / at half the force: Shadow 58, 247 of 268 / 57, 237 of 261;
+#: Inspire 58, 259 of 284 / 58, 258 of 283; Allegro-like 60, 262 of 277 / 59, 251 of 271
+#: (docs/any-hand-measurements.md, "The stop of 2026-12-06, eighth").
+FIRM_SQUEEZE = 5.0 / 3.0
 
 #: The squeeze (rad or m) when the simulation settings are not importable.
 SQUEEZE = math.radians(8.0)
@@ -107,10 +112,10 @@ def squeeze_posture(model, q: np.ndarray, share: float = 1.0) -> np.ndarray:
     return np.clip(out, hand.lower, hand.upper)
 
 
-def softer_squeeze(model, c, obj, friction: float) -> tuple[np.ndarray, np.ndarray | None]:
+def firmer_squeeze(model, c, obj, friction: float) -> tuple[np.ndarray, np.ndarray | None]:
     """The squeeze of a verified grasp c (``AnyChecked``: its decoding, contact forces and
-    python-fcl report) at :data:`SOFT_SQUEEZE` of its force: (posture (n,), contact forces
+    python-fcl report) at :data:`FIRM_SQUEEZE` of its force: (posture (n,), contact forces
     (contacts, 3) N, None for the uniform squeeze)."""
     if c.forces is None:
-        return squeeze_posture(model, c.decoded.q[0], SOFT_SQUEEZE), None
-    return balanced_squeeze(model, c.decoded, obj, friction, sim_settings(), c.fcl, SOFT_SQUEEZE)
+        return squeeze_posture(model, c.decoded.q[0], FIRM_SQUEEZE), None
+    return balanced_squeeze(model, c.decoded, obj, friction, sim_settings(), c.fcl, FIRM_SQUEEZE)

@@ -46,11 +46,17 @@ class SimulationSettings:
         squeeze, and a general hand's when its contacts are not known.
     squeeze_force : float, N
         Mean contact force a general hand's squeeze aims at (``q_grasp + J^T f / kp``,
-        :func:`grasp_apso.quality.closing.squeeze_toward_forces`): 4 N per contact, so that
-        three contacts with mu 0.5 carry the 1 N disturbance with a wide margin (6 N of
-        friction). Measured (``bench/held_rate.py``, 21 objects on a table, best grasps /
-        candidates held): Allegro 15/21, 30/42 at 2 N; 15/21, 33/42 at 4 N; 14/21, 28/42 at
-        6 N; Shadow 14/21, 47/65; 15/21, 51/65; 13/21, 47/65; LEAP 7/21 at 2 N, 10/21 at 4 N.
+        :func:`grasp_apso.quality.closing.squeeze_toward_forces`, with this ``kp``): 2.4 N
+        per contact. The squeeze is a posture, so the force it makes is the gain of the
+        servos that run it times the posture's offset, and the planner does not know that
+        gain: DexGraspBench runs a reply's postures at 5 N m/rad, 2.5 times this check's,
+        so a squeeze meant as 4 N pressed 10 N there and turned or shoved the object out
+        of hands with long fingers (LinkerHand L20, Wuji). 2.4 N here is 6 N at its gain:
+        over the two gains the force brackets the 4 N that three contacts with mu 0.5 need
+        to carry the 1 N disturbance with a wide margin. Measured (``bench/held_rate.py
+        --dexgraspbench``, 21 objects on a table, seeds 0-2, 15 hands, best grasps held,
+        this check / DexGraspBench's parameters): 708 / 763 of 942 at 4 N, 711 / 806 at
+        2.4 N (docs/any-hand-measurements.md, "The stop of 2026-12-06, eighth").
     pregrasp_fraction : float
         Where a general hand's fingers start closing: this fraction of the way from the
         grasp posture back to the given pre-grasp; 1 (the default): the pre-grasp itself,
@@ -122,7 +128,7 @@ class SimulationSettings:
     max_shift: float = 0.05
     max_turn: float = math.radians(15.0)
     squeeze: float = math.radians(8.0)
-    squeeze_force: float = 4.0
+    squeeze_force: float = 2.4
     pregrasp_fraction: float = 1.0
     close_time: float = 0.3
     squeeze_time: float = 0.1
