@@ -47,7 +47,8 @@ A general hand's candidates also record where the object stood, from its planned
 after the closing and after the squeeze (``grasp_*`` / ``squeezed_*`` shift mm and turn
 deg), and the totals count the dropped best grasps by where they went wrong
 (:func:`drop_phase`): the squeezed object already past the limits, moved a third of a
-limit or more by the closing and squeeze, or dropped in the disturbance.
+limit or more by the closing and squeeze, or dropped in the disturbance; with
+``--dexgraspbench`` the same for its check (``dgb_grasp_*``, ``dgb_squeezed_*``).
 
 Prints a table per object (best held / candidates held / median shift mm and turn deg /
 the directions that fail), the totals per algorithm, the failed grasps with their features,
@@ -266,6 +267,17 @@ def run_case(task: tuple) -> dict:
     return row
 
 
+def _from_planned(model, data, ref_pos: np.ndarray, ref_quat: np.ndarray) -> tuple[float, float]:
+    """The object's shift (mm) and turn (deg) from its planned pose (``ref_pos`` (3,) m,
+    ``ref_quat`` (4,)) in a check's current state."""
+    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
+    from grasp_apso.simulation.phases import angle_between
+
+    body = model.body(OBJECT_BODY).id
+    return (1000 * float(np.linalg.norm(data.xipos[body] - ref_pos)),
+            math.degrees(angle_between(ref_quat, data.xquat[body])))
+
+
 def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     """A general hand's candidate in ``simulate_any_hand``: the verdict fields (an error is
     recorded in ``row["sim_errors"]`` and counted as dropped), and where the object was
@@ -273,8 +285,7 @@ def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
     after the squeeze and its settling (``squeezed_*``); and DexGraspBench's tabletop test
     from the squeezed state (``lift_*``, :func:`lift_test`)."""
     from grasp_apso.simulation.any_hand import simulate_any_hand
-    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
-    from grasp_apso.simulation.phases import angle_between, planned_reference
+    from grasp_apso.simulation.phases import planned_reference
     from grasp_apso.simulation.settings import SimulationSettings
 
     ref_pos, ref_quat = planned_reference(pose, obj.center_of_mass)
@@ -283,9 +294,7 @@ def _simulate_any(hand, obj, pose, cand, scene, options, row: dict) -> dict:
 
     def observe(phase, model, data) -> None:
         if phase in ("grasp", "squeezed"):
-            body = model.body(OBJECT_BODY).id
-            seen[phase] = (1000 * float(np.linalg.norm(data.xipos[body] - ref_pos)),
-                           math.degrees(angle_between(ref_quat, data.xquat[body])))
+            seen[phase] = _from_planned(model, data, ref_pos, ref_quat)
         if phase == "squeezed":
             seen["lift"] = lift_test(model, data, settings, ref_pos, ref_quat)
 
@@ -318,8 +327,7 @@ def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> dic
     :func:`_simulate_any`). An error is recorded in ``row["sim_errors"]`` and counted as
     dropped."""
     from grasp_apso.simulation.any_hand import simulate_any_hand
-    from grasp_apso.simulation.any_hand_model import OBJECT_BODY
-    from grasp_apso.simulation.phases import angle_between, planned_reference
+    from grasp_apso.simulation.phases import planned_reference
 
     settings = dexgraspbench_settings()
     ref_pos, ref_quat = planned_reference(pose, obj.center_of_mass)
@@ -327,9 +335,7 @@ def _held_dexgraspbench(hand, obj, pose, cand, scene, options, row: dict) -> dic
 
     def observe(phase, model, data) -> None:
         if phase in ("grasp", "squeezed"):
-            body = model.body(OBJECT_BODY).id
-            seen[phase] = (1000 * float(np.linalg.norm(data.xipos[body] - ref_pos)),
-                           math.degrees(angle_between(ref_quat, data.xquat[body])))
+            seen[phase] = _from_planned(model, data, ref_pos, ref_quat)
         if phase == "squeezed":
             seen["lift"] = lift_test(model, data, settings, ref_pos, ref_quat)[0]
 
