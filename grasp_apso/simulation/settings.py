@@ -51,7 +51,7 @@ class SimulationSettings:
         servos that run it times the posture's offset, and the planner does not know that
         gain: DexGraspBench runs a reply's postures at 5 N m/rad, 2.5 times this check's,
         so a squeeze meant as 4 N pressed 10 N there and turned or shoved the object out
-        of hands with long fingers (LinkerHand L20, Wuji). 2.4 N here is 6 N at its gain:
+        of some hands (the LinkerHand L20, the Wuji hand). 2.4 N here is 6 N at its gain:
         over the two gains the force brackets the 4 N that three contacts with mu 0.5 need
         to carry the 1 N disturbance with a wide margin. Measured (``bench/held_rate.py
         --dexgraspbench``, 21 objects on a table, seeds 0-2, 15 hands, best grasps held,
