@@ -10,8 +10,9 @@ Prints the root link (the palm), the palm normal, each finger with its joints an
 closing senses (+1/-1, 0 = pre-shape), its pad (link, centre, radius), the collision
 spheres per link and how far they stray outside the exact geometry, the couplings, the
 joints held above the palm (or beside it: the rest of a robot the hand is part of) and the
-loader's notes. A user checks a new hand with it before planning. Exit status: 0 ok, 2 a bad description or config (one line naming the
-element). Also runnable as ``python -m grasp_apso.tools.hand_cli``.
+loader's notes. A user checks a new hand with it before planning. Exit status: 0 ok, 2 a
+bad description or config (one line naming the element). Also runnable as
+``python -m grasp_apso.tools.hand_cli``.
 """
 
 from __future__ import annotations

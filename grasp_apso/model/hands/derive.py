@@ -33,7 +33,7 @@ import numpy as np
 from ...errors import HandDescriptionError
 from .description import RawHand
 
-__all__ = ["find_root", "finger_tips", "FingerSemantics", "derive_fingers", "finger_label"]
+__all__ = ["find_root", "finger_tips", "FingerSemantics", "derive_fingers", "finger_label", "subtree", "ancestors"]
 
 _SIDEWAYS_COS = math.cos(math.radians(45.0))
 _CLEAR_COS = 0.25
@@ -119,13 +119,10 @@ def _refuse_several_hands(root: str, raw: RawHand, children, by_name) -> None:
     (neither above the other): the file holds several hands (Unitree's G1 with hands:
     the pelvis would be the palm, its feet fingers). Nested splits (a knuckle turning two
     fingers of one hand, the Schunk SDH's) are one hand."""
-    below = {root}
-    for link in raw.links:  # parents first
-        if link.parent in below:
-            below.add(link.name)
+    below = subtree(raw, root)
     splits = [link.name for link in raw.links
               if link.name in below and len(_finger_branches(link.name, raw, children, by_name)) >= 2]
-    lowest = [name for name in splits if not any(other != name and _is_above(name, other, by_name)
+    lowest = [name for name in splits if not any(other != name and name in ancestors(raw, other)
                                                   for other in splits)]
     if len(lowest) >= 2:
         raise HandDescriptionError(
@@ -134,14 +131,23 @@ def _refuse_several_hands(root: str, raw: RawHand, children, by_name) -> None:
             "(--hand-config FILE with 'root_link: NAME')", field="hand_description")
 
 
-def _is_above(upper: str, lower: str, by_name) -> bool:
-    """Whether link ``upper`` is a strict ancestor of link ``lower``."""
-    parent = by_name[lower].parent
-    while parent is not None:
-        if parent == upper:
-            return True
-        parent = by_name[parent].parent
-    return False
+def subtree(raw: RawHand, root: str) -> set[str]:
+    """The names of link ``root`` and every link below it."""
+    inside = {root}
+    for link in raw.links:  # parents first
+        if link.parent in inside:
+            inside.add(link.name)
+    return inside
+
+
+def ancestors(raw: RawHand, link: str) -> set[str]:
+    """The names of the links strictly above link ``link``."""
+    parents = {item.name: item.parent for item in raw.links}
+    out = set()
+    while parents.get(link) is not None:
+        link = parents[link]
+        out.add(link)
+    return out
 
 
 def finger_tips(raw: RawHand, root: str) -> list[str]:

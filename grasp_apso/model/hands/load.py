@@ -24,7 +24,7 @@ from ... import tunables
 from ...cache import approximate_nbytes, cached
 from ...errors import HandDescriptionError
 from .config import HandConfig, read_config
-from .derive import PALM_NORMAL_FRACTION, derive_fingers, find_root, finger_label, finger_tips
+from .derive import PALM_NORMAL_FRACTION, ancestors, derive_fingers, find_root, finger_label, finger_tips, subtree
 from .description import RawHand, kinematics, lagging_couplings
 from .model import Finger, HandModel, readonly
 from .pad_cover import COVERED, covering_link
@@ -248,7 +248,7 @@ def _fingers(raw: RawHand, root: str, cfg: HandConfig) -> tuple[list[str], list[
             if not by_name[tip].geoms:
                 raise HandDescriptionError(f"hand_config.fingers.{label}: link {tip!r} has no collision geometry",
                                            field="hand_config.fingers")
-            if root not in _ancestors(raw, tip):
+            if root not in ancestors(raw, tip):
                 raise HandDescriptionError(f"hand_config.fingers.{label}: link {tip!r} is not below the root "
                                            f"link {root}", field="hand_config.fingers")
     else:
@@ -271,22 +271,10 @@ def _outside(raw: RawHand, root: str) -> set[str]:
     """The joints the hand holds: those above ``root`` (the root link's own included) and
     those of every link outside its subtree (a humanoid's legs and other arm when the root
     is one palm: they move no finger)."""
-    inside = {root}
-    for link in raw.links:  # parents first
-        if link.parent in inside:
-            inside.add(link.name)
+    inside = subtree(raw, root)
     by_name = {link.name: link for link in raw.links}
     out = {j.name for j in by_name[root].joints}
     return out | {j.name for link in raw.links if link.name not in inside for j in link.joints}
-
-
-def _ancestors(raw: RawHand, link: str) -> set[str]:
-    parents = {item.name: item.parent for item in raw.links}
-    out = set()
-    while parents.get(link) is not None:
-        link = parents[link]
-        out.add(link)
-    return out
 
 
 def _finger(hand: HandModel, label: str, sem, cfg: HandConfig, palm_normal: np.ndarray) -> Finger:
