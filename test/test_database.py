@@ -157,6 +157,16 @@ def test_lock_held_by_live_process_refused_and_stale_lock_taken_over(meshes, tmp
     assert not (out / "_LOCK").exists()
 
 
+#: grasp_apso_batch with SIGINT's default handler, as in a terminal. A process started with
+#: SIGINT ignored (a test run launched as a background job of a non-interactive shell)
+#: passes that on to its children, and Python then keeps ignoring it: Ctrl-C would never
+#: reach the batch (two fresh-clone runs started with ``(nohup bash -c ... &)`` failed so).
+BATCH_AS_IN_A_TERMINAL = ("import signal, sys\n"
+                          "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+                          "from grasp_apso.tools.batch_cli import main\n"
+                          "sys.exit(main(sys.argv[1:]))")
+
+
 def test_ctrl_c_leaves_a_readable_database(meshes, tmp_path):
     out = tmp_path / "interrupted.db"
     folder = tmp_path / "many"
@@ -165,7 +175,7 @@ def test_ctrl_c_leaves_a_readable_database(meshes, tmp_path):
         mesh = builtin(SHAPES[i % 2]).mesh.copy()
         mesh.apply_scale(0.8 + 0.05 * i)
         mesh.export(folder / f"obj{i}.stl")
-    cmd = [sys.executable, "-m", "grasp_apso.tools.batch_cli", str(folder), "--out", str(out),
+    cmd = [sys.executable, "-c", BATCH_AS_IN_A_TERMINAL, str(folder), "--out", str(out),
            "--workers", "1", "--particles", "20", "--iterations", "10", "--grasps", "2",
            "--flush-seconds", "0", "--progress", "lines"]
     proc = subprocess.Popen(cmd, cwd=REPO, stderr=subprocess.PIPE, text=True)
