@@ -5,6 +5,7 @@ Checks the result and the progress count seen by the other process, then that SI
 (and SIGTERM in the middle of a plan) stops the node cleanly: exit status 0 within 10 s.
 """
 import os
+import re
 import signal
 import subprocess
 import threading
@@ -164,7 +165,9 @@ def test_a_burst_of_30_requests_is_answered_completely(client_context):
     finally:
         status = _stop(node_proc, signal.SIGINT)
     lost = [i for i, (res, _) in enumerate(answers) if res is None]
-    assert not lost, f'{len(lost)} of 30 requests never answered\n{node_out.text()[-3000:]}'
+    assert not lost, (f'{len(lost)} of 30 requests never answered ({lost}); the node logged '
+                      f'{len(_burst_requests_logged(node_out.text()))} of them (30: answers lost on the way '
+                      f'back)\n{node_out.text()[-3000:]}')
     planned = [res for res, _ in answers if not res.message.startswith('busy')]
     busy = [res for res, _ in answers if res.message.startswith('busy')]
     assert len(planned) + len(busy) == 30
@@ -172,6 +175,13 @@ def test_a_burst_of_30_requests_is_answered_completely(client_context):
     assert all(res.success for res in planned), [res.message for res in planned if not res.success]
     assert all(not res.success and 'queue_length' in res.message for res in busy)
     assert status == 0, node_out.text()
+
+
+def _burst_requests_logged(text):
+    """The distinct ids of the requests the node's log shows taken or refused as busy
+    (``request <id>: object ...`` / ``request <id>: busy: ...``; the clients' empty round
+    trips, refused as invalid, not counted)."""
+    return set(re.findall(r'request ([0-9a-f-]{36}): (?:object |busy:)', text))
 
 
 def _log_time(line):
