@@ -9,8 +9,9 @@ Rerunnable diagnostic, not a test::
 
 ``bench/held_rate.py --dexgraspbench`` checks every candidate with our simulation parameters
 and with DexGraspBench's (:data:`held_rate.DEXGRASPBENCH`); where the two verdicts differ
-this says why. Each case (``object:seed``, the object resting on a table, the planner's
-defaults, as ``held_rate.py`` plans it) is planned once and its best grasp replayed with:
+this says why. Each case (``object:seed``, the object resting on a table, as ``held_rate.py``
+plans it: APSO with the planner's defaults, or with ``--from-json`` the run's algorithm,
+swarm and ``simulate``) is planned once and its best grasp replayed with:
 
 - ``ours`` and ``dgb`` (all of DexGraspBench's parameters);
 - ``dgb - G``: DexGraspBench's parameters with the group G set back to ours;
@@ -77,11 +78,11 @@ def replay_case(task: tuple) -> dict:
     from grasp_apso.simulation.any_hand import simulate_any_hand
     from grasp_apso.simulation.settings import SimulationSettings
 
-    spec, name, seed, runs = task
+    spec, name, seed, algorithm, plan_fields, runs = task
     hand, obj, pose = general_hand(spec), load(name), np.eye(4)
     scene = Scene.table_under(np.asarray(obj.mesh.vertices))
-    options = PlanOptions(algorithm="apso")
-    row = {"object": name, "seed": seed, "results": {}}
+    options = PlanOptions(algorithm=algorithm, **plan_fields)
+    row = {"object": name, "seed": seed, "algorithm": algorithm, "results": {}}
     result = plan(obj, pose, options, np.random.default_rng(seed), hand=hand, scene=scene)
     if not result.candidates:
         row["error"] = "no grasp"
@@ -99,14 +100,24 @@ def replay_case(task: tuple) -> dict:
     return row
 
 
-def cases_from_json(path: Path, all_cases: bool) -> list[tuple[str, int]]:
-    """The (object, seed) of a ``held_rate.py --dexgraspbench`` run's plans whose best grasp
-    dropped with DexGraspBench's parameters (every plan with a grasp: ``all_cases``)."""
+def cases_from_json(path: Path, all_cases: bool) -> tuple[list[tuple[str, int, str]], dict]:
+    """The (object, seed, algorithm) of a ``held_rate.py --dexgraspbench`` run's plans whose
+    best grasp dropped with DexGraspBench's parameters (every plan with a grasp:
+    ``all_cases``), and the run's planner options besides the algorithm (its swarm,
+    ``simulate``), so that each case is planned again as that run planned it. Only the
+    objects in their files' frames (the first of the run's poses, the identity)."""
     saved = json.loads(path.read_text())
     if saved.get("benchmark") != "held_rate" or not saved.get("dexgraspbench"):
         raise SystemExit(f"--from-json: {path} is not a held_rate.py --dexgraspbench run")
-    return [(r["object"], int(r["seed"])) for r in saved["runs"]
-            if r.get("candidates") and (all_cases or not r["candidates"][0].get("dgb_held", True))]
+    if saved.get("stable"):
+        raise SystemExit(f"--from-json: {path} planned the meshes in their resting poses (--stable); "
+                         "this replays them in their files' frames")
+    swarm = saved.get("swarm")
+    fields = {"simulate": bool(saved.get("simulate"))} | (swarm if isinstance(swarm, dict) else {})
+    cases = [(r["object"], int(r["seed"]), r.get("algorithm", "apso")) for r in saved["runs"]
+             if r.get("pose", 0) == 0 and r.get("candidates")
+             and (all_cases or not r["candidates"][0].get("dgb_held", True))]
+    return cases, fields
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -128,19 +139,21 @@ def main(argv: list[str] | None = None) -> int:
         name, _, seed = text.partition(":")
         if not name or not seed.isdigit():
             raise SystemExit(f"--cases: expected OBJECT:SEED, got {text!r}")
-        cases.append((name, int(seed)))
+        cases.append((name, int(seed), "apso"))
+    plan_fields: dict = {}
     if args.from_json:
-        cases += cases_from_json(args.from_json, args.all_cases)
+        saved_cases, plan_fields = cases_from_json(args.from_json, args.all_cases)
+        cases += saved_cases
     if not cases:
         raise SystemExit("no cases: give --cases or --from-json")
-    unknown = sorted({name for name, _ in cases} - set(BUILTINS) - set(mesh_names()))
+    unknown = sorted({name for name, _, _ in cases} - set(BUILTINS) - set(mesh_names()))
     if unknown:
         raise SystemExit(f"--cases: unknown objects {unknown} (the built-ins and grasp_apso/data/meshes)")
     bad = [f for f in args.pregrasp_fractions if not 0.0 <= f <= 1.0] + [s for s in args.squeeze_scales if s < 0.0]
     if bad:
         raise SystemExit(f"--pregrasp-fractions in [0, 1], --squeeze-scales >= 0: got {bad}")
     runs = variants(args.pregrasp_fractions, args.squeeze_scales)
-    tasks = [(args.hand, name, seed, runs) for name, seed in cases]
+    tasks = [(args.hand, name, seed, algorithm, plan_fields, runs) for name, seed, algorithm in cases]
     t0 = time.perf_counter()
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
@@ -153,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
         cells = [r["results"].get(label) for r in rows]
         table.append([label, str(sum(bool(c and c["held"]) for c in cells))]
                      + [("H" if c["held"] else ".") + f" {c['shift_mm']:.0f}" if c else "-" for c in cells])
-    header = ["variant", f"held of {len(rows)}"] + [f"{r['object']}:{r['seed']}" for r in rows]
+    header = ["variant", f"held of {len(rows)}"] + [
+        f"{r['object']}:{r['seed']}" + ("" if r["algorithm"] == "apso" else f" ({r['algorithm']})") for r in rows]
     print(markdown_table(header, table))
     print(f"\n{len(rows)} cases in {time.perf_counter() - t0:.0f} s")
     out = args.out or REPO_ROOT / "bench" / "results" / f"dgb_factors_{Path(args.hand).stem}.json"
