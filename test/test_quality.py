@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import warnings
 from itertools import combinations
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -557,3 +558,50 @@ def test_cheap_outside_test_never_rejects_a_force_closure_grasp():
             rejected_outside += not may
     assert outside > 100
     assert rejected_outside / outside > 0.9
+
+
+def test_epsilon_without_facet_merging_equals_qhulls_default():
+    """hull_only_epsilon builds the hull without facet merging (FAST_HULL_OPTIONS, about 3x
+    faster in 6-D) and falls back to qhull's default where that raises: the value is the
+    default hull's on random grasps of 3-5 contacts and on degenerate wrench sets (a contact
+    repeated, all normals parallel) that make the unmerged build fail."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    from grasp_apso.quality.measures import FAST_HULL_OPTIONS, closure_wrenches, hull_only_epsilon
+
+    def default(w):
+        try:
+            off = ConvexHull(w).equations[:, -1]
+        except (QhullError, ValueError):
+            return 0.0
+        return float(-off.max()) if np.all(off < 0.0) else 0.0
+
+    rng = np.random.default_rng(21)
+    compared = positive = 0
+    for trial in range(60):
+        k = int(rng.integers(3, 6))
+        n = rng.normal(size=(k, 3))
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        p = R_SPHERE * n
+        if trial % 10 == 0:  # degenerate: a contact given twice
+            p, n = np.vstack([p, p[:1]]), np.vstack([n, n[:1]])
+        w = closure_wrenches(p, n, np.zeros(3), 0.5, torque_scale=R_SPHERE)
+        if w is None:
+            continue
+        value, expected = hull_only_epsilon(w), default(w)
+        assert value == pytest.approx(expected, abs=1e-12), trial
+        compared += 1
+        positive += expected > 0.0
+    assert compared >= 50 and positive >= 10
+    # Two wrench sets of grasps the planner returned (objects on a table) on which the
+    # unmerged build raises a precision error: the default decides, the first force closure.
+    data = np.load(Path(__file__).parent / "data" / "qhull_unmerged_precision_errors.npz")
+    for name in ("concave", "flat"):
+        with pytest.raises(QhullError):
+            ConvexHull(data[name], qhull_options=FAST_HULL_OPTIONS)
+        assert hull_only_epsilon(data[name]) == pytest.approx(default(data[name]), abs=1e-12)
+    assert hull_only_epsilon(data["concave"]) == pytest.approx(0.0456, abs=1e-4)
+    # every normal parallel (a flat face): no 6-D ball, whichever build decides
+    p = np.column_stack([rng.uniform(-0.02, 0.02, (4, 2)), np.zeros(4)])
+    w = closure_wrenches(p, np.tile([0.0, 0.0, 1.0], (4, 1)), np.zeros(3), 0.5, torque_scale=R_SPHERE)
+    assert hull_only_epsilon(w) == 0.0

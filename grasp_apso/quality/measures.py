@@ -471,12 +471,24 @@ def hull_epsilon(wrenches: NDArray[np.float64]) -> float:
     return hull_only_epsilon(wrenches)
 
 
+#: Qhull's options for the wrench hull, tried first: no facet merging. Qhull's default in
+#: 6-D (``Qt Qx``: merged facets) builds the ~1,000 facets of 32 cone edges in about 4.5 ms,
+#: without merging in about 1.4 ms; every facet is still a supporting hyperplane of the
+#: hull, so the least facet distance is the same (measured on 418 wrench sets of the paper
+#: hand, the Shadow and the Inspire hands on 8 objects: at most 4e-16 apart). Where it
+#: cannot (a precision error of nearly coplanar wrenches, 13 of the 418) the default decides.
+FAST_HULL_OPTIONS = "Q0"
+
+
 def hull_only_epsilon(wrenches: NDArray[np.float64]) -> float:
     """:func:`hull_epsilon` without its quick test (for a caller that made it)."""
     try:
-        hull = ConvexHull(wrenches)
+        hull = ConvexHull(wrenches, qhull_options=FAST_HULL_OPTIONS)
     except (QhullError, ValueError):
-        return 0.0  # lower-dimensional wrench set: cannot contain a 6-D ball
+        try:
+            hull = ConvexHull(wrenches)
+        except (QhullError, ValueError):
+            return 0.0  # lower-dimensional wrench set: cannot contain a 6-D ball
     offsets = hull.equations[:, -1]  # unit facet normals; inside means n.x + offset <= 0
     if not np.all(offsets < 0.0):
         return 0.0
