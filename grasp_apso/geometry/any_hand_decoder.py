@@ -221,30 +221,17 @@ class AnyDecoded:
                              for f in fields(self)})
 
 
-def _pad_points(model: AnyHandModel, rot: np.ndarray, trans: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Each finger's pad point (``Finger.pad_center``, on the pad link's surface) in the
-    object frame (P, F, 3) m at postures q (P, n); rot (P, 3, 3), trans (P, 3) place the
-    root in the object frame."""
-    t = model.tables
-    n_f = t.n_fingers
-    poses = np.empty((len(q), n_f, t.finger_link.shape[1], 4, 4))
-    hk.link_poses(np.ascontiguousarray(q), model.kin, poses)
-    pad = poses[:, np.arange(n_f), t.pad_local]                      # (P, F, 4, 4) root frame
-    local = np.array([f.pad_center for f in model.hand.fingers], dtype=float)
-    root_pts = np.einsum("pfij,fj->pfi", pad[..., :3, :3], local) + pad[..., :3, 3]
-    return np.einsum("pij,pfj->pfi", rot, root_pts) + trans[:, None, :]
-
-
 def _pad_facing(model: AnyHandModel, points: np.ndarray, centers: np.ndarray) -> np.ndarray:
     """(P, F) cosine between each pad's normal (its sphere's centre to its pad point) and
     the inward surface normal where the pad sphere is nearest the object: 1 when the pad
-    point itself faces the surface, 0 when the fingertip touches with its side."""
-    pad_normal = points - centers
-    pad_normal /= np.maximum(np.linalg.norm(pad_normal, axis=2, keepdims=True), 1e-12)
-    _, gradient = model.sdf.distance_and_gradient(centers.reshape(-1, 3))
-    gradient = gradient.reshape(centers.shape)
-    gradient /= np.maximum(np.linalg.norm(gradient, axis=2, keepdims=True), 1e-12)
-    return -(pad_normal * gradient).sum(axis=2)
+    point itself faces the surface, 0 when the fingertip touches with its side (the
+    compiled :func:`.any_hand_kernels.pad_facings`, which the closing computes too)."""
+    points, centers = np.broadcast_arrays(np.asarray(points, np.float64), np.asarray(centers, np.float64))
+    out = np.empty(points.shape[:-1])
+    hk.pad_facings(model.sdf._values64, model.sdf._origin64, float(model.sdf.spacing),
+                   np.ascontiguousarray(points.reshape(-1, 3)), np.ascontiguousarray(centers.reshape(-1, 3)),
+                   out.reshape(-1))
+    return out
 
 
 def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None,
@@ -275,16 +262,16 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     stopped = np.empty((n_p, n_f), dtype=bool)
     link_clear = np.full((n_p, n_f, lmax), np.inf)
     pad_pos, pad_gap = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
+    pads, facing, pad_offset = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f)), np.empty((n_p, n_f))
     hk.close_fingers(*grid, rot, trans, q0, model.kin, int(s.coarse_steps), max(REFINE_STEPS, s.refine_steps),
-                     CUTOFF, q, s_out, start, stopped, link_clear, pad_pos, pad_gap)
+                     CUTOFF, t.pad_point, q, s_out, start, stopped, link_clear, pad_pos, pad_gap, pads, facing,
+                     pad_offset)
     blocked = start < -s.tolerance
     # The pad sphere may touch the object with the fingertip's side or tip, away from the
     # pad: a contact is made with the pad, so the pad sphere must touch within PAD_CONE of
-    # the pad point's direction; the rest of the way guides the swarm toward it.
-    pads = _pad_points(model, rot, trans, q)
-    facing = _pad_facing(model, pads, pad_pos)
+    # the pad point's direction (``facing``); the rest of the way guides the swarm toward it.
     off = np.maximum(0.0, _COS_CONE - facing) * t.pad_radius[None, :]
-    pad_offset = np.abs(model.sdf.distance(pads.reshape(-1, 3))).reshape(n_p, n_f)
+    pad_offset = np.abs(pad_offset)
     tip_gap = pad_gap + off
     contact = stopped & ~blocked & (np.abs(pad_gap) <= s.tolerance - GRID_MARGIN) & (facing >= _COS_CONE)
     if pads_on:

@@ -209,9 +209,48 @@ def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
                           pad_pos[0], pad_pos[1], pad_pos[2]) - K[_PADR][f]
 
 
+@_inline
+def _unit_gradient(values, origin, spacing, x, y, z, out):
+    """The signed distance's unit gradient at (x, y, z) into out (3,): central differences
+    over half a cell, as :func:`.kernels.grid_distances_gradients`."""
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    inv = 1.0 / spacing
+    h = 0.5 * spacing
+    gx = (_grid_distance(values, ox, oy, oz, inv, spacing, x + h, y, z)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x - h, y, z))
+    gy = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y + h, z)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y - h, z))
+    gz = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y, z + h)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z - h))
+    norm = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
+    out[0], out[1], out[2] = gx / norm, gy / norm, gz / norm
+
+
+@_inline
+def _facing(values, origin, spacing, point, centre, g):
+    """Cosine between a pad's normal (its sphere's ``centre`` (3,) to its pad ``point``
+    (3,)) and the inward surface normal at the centre (the grid's unit gradient, into g
+    (3,), normalised once more as unit vectors are): 1 when the pad point faces the
+    surface, 0 when the fingertip touches with its side."""
+    nx, ny, nz = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    norm = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-12)
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    _unit_gradient(values, origin, spacing, centre[0], centre[1], centre[2], g)
+    norm = max(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]), 1e-12)
+    return -(nx * (g[0] / norm) + ny * (g[1] / norm) + nz * (g[2] / norm))
+
+
 @_jit
-def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cutoff,
-                  q_out, s_out, start_clear, stopped, link_clear, pad_pos, pad_gap):
+def pad_facings(values, origin, spacing, points, centres, out):
+    """:func:`_facing` of pads given by their points and sphere centres (N, 3) -> out (N,)."""
+    g = np.empty(3)
+    for n in range(points.shape[0]):
+        out[n] = _facing(values, origin, spacing, points[n], centres[n], g)
+
+
+@_jit
+def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cutoff, pad_point,
+                  q_out, s_out, start_clear, stopped, link_clear, pad_pos, pad_gap, pads, facing, pad_dist):
     """Close every finger of every particle from its pre-shape q0 (P, n).
 
     Each joint of finger f with a closing limit moves ``q0 + s (limit - q0)``; ``s`` is the
@@ -219,7 +258,10 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
     (clearance <= 0; these steps cull at 0: only the sign matters), refined by ``refine`` bisections to the last free ``s`` (1 when nothing
     is met). Writes q_out (P, n) closed, s_out (P, F), start_clear (P, F) the finger's
     clearance at its pre-shape, stopped (P, F) bool something met, link_clear (P, F, Lmax)
-    per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance.
+    per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance; and
+    at the closed posture q_out, pads (P, F, 3) the pad points (``pad_point`` (F, 3) on
+    the pad links) in the object frame, facing (P, F) each pad's :func:`_facing` at its
+    sphere's centre pad_pos, pad_dist (P, F) the signed distance at the pad point.
     """
     n_p, n_f, lmax = q0.shape[0], K[_NL].shape[0], link_clear.shape[2]
     n_links, mov, jc, ji = K[_NL], K[_MOV], K[_JC], K[_JI]
@@ -228,8 +270,10 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
     local = np.empty((4, 4))
     lc = np.empty(lmax)
     c = np.empty(3)
+    g = np.empty(3)
     q = np.empty(q0.shape[1])
     qp = np.empty(q0.shape[1])  # the particle's pre-shape (a copy: a row view per use costs more)
+    used = np.empty((n_f, ji.shape[1]))  # each finger's joint values at its closing
     for p in range(n_p):
         r, t = rot[p], trans[p]
         for j in range(q0.shape[1]):
@@ -276,11 +320,28 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
             finger_poses(q, f, K, poses, tmp, local, True)
             _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, link_clear[p, f], c)
             pad_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, pad_pos[p, f])
+            _point_at(r, t, poses, K[_PADL][f], pad_point[f, 0], pad_point[f, 1], pad_point[f, 2], pads[p, f])
             s_out[p, f] = s
             stopped[p, f] = met
             for k in range(jc[f]):
                 j = ji[f, k]
                 q_out[p, j] = q[j]
+                used[f, k] = q[j]
+        ox, oy, oz, inv = origin[0], origin[1], origin[2], 1.0 / spacing
+        for f in range(n_f):
+            # A joint another finger closes too (one closing several fingers) ends where the
+            # last of them left it: the pad point at the closed posture then moves with it.
+            for k in range(jc[f]):
+                if q_out[p, ji[f, k]] != used[f, k]:
+                    for j in range(q0.shape[1]):
+                        q[j] = q_out[p, j]
+                    finger_poses(q, f, K, poses, tmp, local)
+                    _point_at(r, t, poses, K[_PADL][f], pad_point[f, 0], pad_point[f, 1], pad_point[f, 2],
+                              pads[p, f])
+                    break
+            facing[p, f] = _facing(values, origin, spacing, pads[p, f], pad_pos[p, f], g)
+            pad_dist[p, f] = _grid_distance(values, ox, oy, oz, inv, spacing, pads[p, f, 0], pads[p, f, 1],
+                                            pads[p, f, 2])
 
 
 @_jit

@@ -110,6 +110,7 @@ class HandTables:
     pad_local: np.ndarray        # (F,) int, finger-local index of the pad link
     pad_center: np.ndarray       # (F, 3) pad link frame: the pad sphere's centre (pad_sphere_center)
     pad_radius: np.ndarray       # (F,)
+    pad_point: np.ndarray        # (F, 3) pad link frame: the pad point (``Finger.pad_center``, on the surface)
     pad_slack: np.ndarray        # (F,) m: how far the pad body's covers stray outside its geometry
     j_count: np.ndarray          # (F,) int
     j_index: np.ndarray          # (F, Jmax) int, into q
@@ -294,7 +295,7 @@ def _build(hand) -> HandTables:
         grp_start=_ro(grp_start, np.int64), grp_count=_ro(grp_count, np.int64),
         grp_center=_ro(grp_center), grp_radius=_ro(grp_radius), sph_center=_ro(sph_c), sph_radius=_ro(sph_r),
         pad_local=_ro([p[0] for p in pads], np.int64), pad_center=_ro([p[1] for p in pads]),
-        pad_radius=_ro([p[2] for p in pads]),
+        pad_radius=_ro([p[2] for p in pads]), pad_point=_ro([np.asarray(f.pad_center, float) for f in fingers]),
         pad_slack=_ro(pad_slack), j_count=_ro(j_count, np.int64), j_index=_ro(j_index, np.int64),
         j_target=_ro(j_target), lnk_center=_ro(lnk_center), lnk_radius=_ro(lnk_radius),
         moving=_ro(moving, np.int64), pad_body=_ro(pad_body, np.int64),
