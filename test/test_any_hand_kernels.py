@@ -6,6 +6,8 @@ convex-hull bound against fcl's BVH distance of the exact meshes."""
 
 from __future__ import annotations
 
+import re
+
 import fcl
 import numba
 import numpy as np
@@ -129,3 +131,58 @@ def test_the_links_a_closing_does_not_move_keep_their_poses_along_it(hands, name
                 assert same.all(), (f, l)
             moved_any[f, l] = not same.all()
     assert np.array_equal(moved_any[:, :], t.moving.astype(bool))
+
+
+def _shared_closing_hand(folder):
+    """The Allegro-like hand with the middle finger's middle joint mimicking the index
+    finger's: one actuated joint closes two fingers (the one closed last sets it)."""
+    path = write_allegro_like(folder, "none")
+    text = re.sub(r'(<joint name="middle_joint_2" type="revolute">.*?)(\s*</joint>)',
+                  r'\1\n    <mimic joint="index_joint_2" multiplier="1" offset="0"/>\2', path.read_text(), count=1,
+                  flags=re.S)
+    path.write_text(text)
+    return load_hand(path)
+
+
+@pytest.mark.parametrize("name", ["shadow", "inspire", "allegro_like", "shared"])
+def test_the_closing_writes_pad_points_facings_and_distances_at_the_closed_posture(hands, name, tmp_path):
+    """The pad point, its facing and the signed distance there that the closing kernel
+    writes for each finger are those of the closed posture it returns, by the hand model's
+    own kinematics (``HandModel.link_transforms_batch``) and the grid's own look-ups
+    (``SignedDistanceGrid.distance`` and ``distance_and_gradient``): seeded random particles
+    on the barrel. ``shared``: a joint two fingers close, where the first finger's pad point
+    moves with the second's closing."""
+    from grasp_apso.geometry.any_hand_decoder import CUTOFF, REFINE_STEPS, make_any_hand_model, root_poses
+    from grasp_apso.model.builtin import builtin
+
+    hand = _shared_closing_hand(tmp_path) if name == "shared" else hands[name]
+    model = make_any_hand_model(hand, builtin("barrel"))
+    t, s, sdf = model.tables, model.settings, model.sdf
+    x = np.random.default_rng(6).uniform(model.lower, model.upper, (400, len(model.lower)))
+    root = root_poses(model, x)
+    rot, trans = np.ascontiguousarray(root[:, :3, :3]), np.ascontiguousarray(root[:, :3, 3])
+    q0 = np.ascontiguousarray(x[:, model.layout.joints])
+    n_p, n_f, lmax = len(x), t.n_fingers, t.finger_link.shape[1]
+    q, s_out, start = np.empty_like(q0), np.empty((n_p, n_f)), np.empty((n_p, n_f))
+    stopped, link_clear = np.empty((n_p, n_f), dtype=bool), np.empty((n_p, n_f, lmax))
+    pad_pos, pad_gap, pads = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f)), np.empty((n_p, n_f, 3))
+    facing, pad_dist = np.empty((n_p, n_f)), np.empty((n_p, n_f))
+    hk.close_fingers(sdf._values64, sdf._origin64, float(sdf.spacing), rot, trans, q0, model.kin,
+                     int(s.coarse_steps), REFINE_STEPS, CUTOFF, t.pad_point, q, s_out, start, stopped, link_clear,
+                     pad_pos, pad_gap, pads, facing, pad_dist)
+    links = hand.link_transforms_batch(q)
+    for f, finger in enumerate(hand.fingers):
+        pose = links[:, hand.link_index(finger.pad_link)]
+        expected = np.einsum("pij,pj->pi", rot, pose[:, :3, :3] @ np.asarray(finger.pad_center, float)
+                             + pose[:, :3, 3]) + trans
+        np.testing.assert_allclose(pads[:, f], expected, atol=1e-12)
+    np.testing.assert_allclose(pad_dist, sdf.distance(pads), atol=1e-12)
+    normal = pads - pad_pos
+    normal /= np.linalg.norm(normal, axis=2, keepdims=True)
+    np.testing.assert_allclose(facing, -(normal * sdf.distance_and_gradient(pad_pos)[1]).sum(axis=2), atol=1e-9)
+    assert stopped.mean() > 0.1 and (np.abs(pad_gap) < 0.002).sum() > 50  # fingers met the barrel
+    assert facing.min() < 0.0 < facing.max()
+    if name == "shared":
+        # the index finger's pad point is where the middle finger's closing left their joint
+        j = hand.actuated_joints.index("index_joint_2")
+        assert (np.abs(q[:, j] - q0[:, j]) > 1e-3).any()
