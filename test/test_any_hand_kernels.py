@@ -147,7 +147,8 @@ def _shared_closing_hand(folder):
 @pytest.mark.parametrize("name", ["shadow", "inspire", "allegro_like", "shared"])
 def test_the_closing_writes_pad_points_facings_and_distances_at_the_closed_posture(hands, name, tmp_path):
     """The pad point, its facing and the signed distance there that the closing kernel
-    writes for each finger are those of the closed posture it returns, by the hand model's
+    writes for each finger are those of the closed posture it returns (and its clearances
+    at the pre-shape those of :func:`finger_clearances` there), by the hand model's
     own kinematics (``HandModel.link_transforms_batch``) and the grid's own look-ups
     (``SignedDistanceGrid.distance`` and ``distance_and_gradient``): seeded random particles
     on the barrel. ``shared``: a joint two fingers close, where the first finger's pad point
@@ -167,9 +168,19 @@ def test_the_closing_writes_pad_points_facings_and_distances_at_the_closed_postu
     stopped, link_clear = np.empty((n_p, n_f), dtype=bool), np.empty((n_p, n_f, lmax))
     pad_pos, pad_gap, pads = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f)), np.empty((n_p, n_f, 3))
     facing, pad_dist = np.empty((n_p, n_f)), np.empty((n_p, n_f))
-    hk.close_fingers(sdf._values64, sdf._origin64, float(sdf.spacing), rot, trans, q0, model.kin,
-                     int(s.coarse_steps), REFINE_STEPS, CUTOFF, t.pad_point, q, s_out, start, stopped, link_clear,
-                     pad_pos, pad_gap, pads, facing, pad_dist)
+    open_clear, open_pad, open_gap = np.full((n_p, n_f, lmax), np.inf), np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
+    grid = (sdf._values64, sdf._origin64, float(sdf.spacing))
+    hk.close_fingers(*grid, rot, trans, q0, model.kin, int(s.coarse_steps), REFINE_STEPS, CUTOFF, t.pad_point, q,
+                     s_out, start, stopped, link_clear, pad_pos, pad_gap, pads, facing, pad_dist, open_clear,
+                     open_pad, open_gap)
+    # at the pre-shape (where a finger without contact goes back to): finger_clearances' values
+    rows = np.argwhere(np.ones((n_p, n_f), dtype=bool)).astype(np.int64)
+    ref_clear, ref_pad, ref_gap = np.full((n_p, n_f, lmax), np.inf), np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
+    hk.finger_clearances(*grid, rot, trans, q0, rows, model.kin, CUTOFF, ref_clear, ref_pad, ref_gap)
+    np.testing.assert_array_equal(open_clear, ref_clear)
+    np.testing.assert_array_equal(open_pad, ref_pad)
+    np.testing.assert_array_equal(open_gap, ref_gap)
+    np.testing.assert_array_equal(open_clear.min(axis=2), start)
     links = hand.link_transforms_batch(q)
     for f, finger in enumerate(hand.fingers):
         pose = links[:, hand.link_index(finger.pad_link)]

@@ -263,9 +263,10 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
     link_clear = np.full((n_p, n_f, lmax), np.inf)
     pad_pos, pad_gap = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
     pads, facing, pad_offset = np.empty((n_p, n_f, 3)), np.empty((n_p, n_f)), np.empty((n_p, n_f))
+    open_clear, open_pad, open_gap = np.full((n_p, n_f, lmax), np.inf), np.empty((n_p, n_f, 3)), np.empty((n_p, n_f))
     hk.close_fingers(*grid, rot, trans, q0, model.kin, int(s.coarse_steps), max(REFINE_STEPS, s.refine_steps),
                      CUTOFF, t.pad_point, q, s_out, start, stopped, link_clear, pad_pos, pad_gap, pads, facing,
-                     pad_offset)
+                     pad_offset, open_clear, open_pad, open_gap)
     blocked = start < -s.tolerance
     # The pad sphere may touch the object with the fingertip's side or tip, away from the
     # pad: a contact is made with the pad, so the pad sphere must touch within PAD_CONE of
@@ -284,9 +285,8 @@ def decode_any(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
             owned[f, t.j_index[f, :t.j_count[f]]] = True
         back = (reset[:, :, None] & owned[None]).any(axis=1)
         q[back] = q0[back]
-        rows = np.argwhere(reset).astype(np.int64)
-        link_clear[rows[:, 0], rows[:, 1]] = np.inf
-        hk.finger_clearances(*grid, rot, trans, q, rows, model.kin, CUTOFF, link_clear, pad_pos, pad_gap)
+        # their links and pads as the closing found them at the pre-shape
+        link_clear[reset], pad_pos[reset], pad_gap[reset] = open_clear[reset], open_pad[reset], open_gap[reset]
         s_out[reset] = 0.0
     penetration = np.maximum(0.0, -link_clear.min(axis=2))
     non_pad = link_clear.copy()

@@ -250,7 +250,8 @@ def pad_facings(values, origin, spacing, points, centres, out):
 
 @_jit
 def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cutoff, pad_point,
-                  q_out, s_out, start_clear, stopped, link_clear, pad_pos, pad_gap, pads, facing, pad_dist):
+                  q_out, s_out, start_clear, stopped, link_clear, pad_pos, pad_gap, pads, facing, pad_dist,
+                  open_clear, open_pad, open_gap):
     """Close every finger of every particle from its pre-shape q0 (P, n).
 
     Each joint of finger f with a closing limit moves ``q0 + s (limit - q0)``; ``s`` is the
@@ -261,7 +262,10 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
     per link at the stop, pad_pos (P, F, 3) and pad_gap (P, F) the pad's clearance; and
     at the closed posture q_out, pads (P, F, 3) the pad points (``pad_point`` (F, 3) on
     the pad links) in the object frame, facing (P, F) each pad's :func:`_facing` at its
-    sphere's centre pad_pos, pad_dist (P, F) the signed distance at the pad point.
+    sphere's centre pad_pos, pad_dist (P, F) the signed distance at the pad point; and at
+    the pre-shape q0 (where a finger that makes no contact goes back to), open_clear (P, F,
+    Lmax) per link, open_pad (P, F, 3) and open_gap (P, F) as link_clear, pad_pos and
+    pad_gap (what :func:`finger_clearances` computes there).
     """
     n_p, n_f, lmax = q0.shape[0], K[_NL].shape[0], link_clear.shape[2]
     n_links, mov, jc, ji = K[_NL], K[_MOV], K[_JC], K[_JI]
@@ -283,12 +287,13 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
             for j in range(q0.shape[1]):
                 q[j] = qp[j]
             finger_poses(q, f, K, poses, tmp, local)
-            c0 = _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, lc, c)
+            c0 = _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, open_clear[p, f], c)
+            open_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, open_pad[p, f])
             start_clear[p, f] = c0
             fixed = np.inf  # the links the closing does not move keep their clearance
             for l in range(n_links[f]):
                 if mov[f, l] == 0:
-                    fixed = min(fixed, lc[l])
+                    fixed = min(fixed, open_clear[p, f, l])
             s = 0.0
             met = c0 <= 0.0
             if not met:
