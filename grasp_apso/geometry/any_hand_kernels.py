@@ -30,6 +30,8 @@ _inline = numba.njit(cache=True, nogil=True, inline="always")
 #: The grid's trilinear look-up (:func:`.kernels._grid_value`) inlined here: a compiled
 #: call passing the grid array costs its reference counting, about as much as the look-up.
 _grid_value = _inline(_kernels._grid_value.py_func)
+#: The grid's unit gradient (:func:`.kernels.unit_gradient`, inlined there too).
+_unit_gradient = _kernels.unit_gradient
 
 
 @_inline
@@ -210,42 +212,25 @@ def _pad(values, origin, spacing, rot, trans, poses, f, K, pad_pos):
 
 
 @_inline
-def _unit_gradient(values, origin, spacing, x, y, z, out):
-    """The signed distance's unit gradient at (x, y, z) into out (3,): central differences
-    over half a cell, as :func:`.kernels.grid_distances_gradients`."""
-    ox, oy, oz = origin[0], origin[1], origin[2]
-    inv = 1.0 / spacing
-    h = 0.5 * spacing
-    gx = (_grid_distance(values, ox, oy, oz, inv, spacing, x + h, y, z)
-          - _grid_distance(values, ox, oy, oz, inv, spacing, x - h, y, z))
-    gy = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y + h, z)
-          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y - h, z))
-    gz = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y, z + h)
-          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z - h))
-    norm = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
-    out[0], out[1], out[2] = gx / norm, gy / norm, gz / norm
-
-
-@_inline
-def _facing(values, origin, spacing, point, centre, g):
+def _facing(values, origin, spacing, point, centre):
     """Cosine between a pad's normal (its sphere's ``centre`` (3,) to its pad ``point``
-    (3,)) and the inward surface normal at the centre (the grid's unit gradient, into g
-    (3,), normalised once more as unit vectors are): 1 when the pad point faces the
-    surface, 0 when the fingertip touches with its side."""
+    (3,)) and the inward surface normal at the centre (the grid's unit gradient,
+    normalised once more as unit vectors are): 1 when the pad point faces the surface, 0
+    when the fingertip touches with its side."""
     nx, ny, nz = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
     norm = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-12)
     nx, ny, nz = nx / norm, ny / norm, nz / norm
-    _unit_gradient(values, origin, spacing, centre[0], centre[1], centre[2], g)
-    norm = max(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]), 1e-12)
-    return -(nx * (g[0] / norm) + ny * (g[1] / norm) + nz * (g[2] / norm))
+    gx, gy, gz = _unit_gradient(values, origin[0], origin[1], origin[2], 1.0 / spacing, spacing, centre[0],
+                                centre[1], centre[2])
+    norm = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
+    return -(nx * (gx / norm) + ny * (gy / norm) + nz * (gz / norm))
 
 
 @_jit
 def pad_facings(values, origin, spacing, points, centres, out):
     """:func:`_facing` of pads given by their points and sphere centres (N, 3) -> out (N,)."""
-    g = np.empty(3)
     for n in range(points.shape[0]):
-        out[n] = _facing(values, origin, spacing, points[n], centres[n], g)
+        out[n] = _facing(values, origin, spacing, points[n], centres[n])
 
 
 @_jit
@@ -274,7 +259,6 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
     local = np.empty((4, 4))
     lc = np.empty(lmax)
     c = np.empty(3)
-    g = np.empty(3)
     q = np.empty(q0.shape[1])
     qp = np.empty(q0.shape[1])  # the particle's pre-shape (a copy: a row view per use costs more)
     used = np.empty((n_f, ji.shape[1]))  # each finger's joint values at its closing
@@ -344,7 +328,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     _point_at(r, t, poses, K[_PADL][f], pad_point[f, 0], pad_point[f, 1], pad_point[f, 2],
                               pads[p, f])
                     break
-            facing[p, f] = _facing(values, origin, spacing, pads[p, f], pad_pos[p, f], g)
+            facing[p, f] = _facing(values, origin, spacing, pads[p, f], pad_pos[p, f])
             pad_dist[p, f] = _grid_distance(values, ox, oy, oz, inv, spacing, pads[p, f, 0], pads[p, f, 1],
                                             pads[p, f, 2])
 

@@ -152,6 +152,21 @@ def normal_spreads(dist, index, normals, reference, radius, back_cos, out):
         out[n] = math.sqrt(acc / total)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z):
+    """The signed distance's unit gradient at one point, a tuple (gx, gy, gz): central
+    differences over half a cell (inlined where called; ``inv`` = 1 / spacing)."""
+    h = 0.5 * spacing
+    gx = (_grid_distance(values, ox, oy, oz, inv, spacing, x + h, y, z)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x - h, y, z))
+    gy = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y + h, z)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y - h, z))
+    gz = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y, z + h)
+          - _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z - h))
+    norm = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
+    return gx / norm, gy / norm, gz / norm
+
+
 @_jit
 def grid_distances_gradients(values, origin, spacing, points, distance, gradient):
     """Signed distance and its unit gradient (central differences over half a cell).
@@ -160,20 +175,10 @@ def grid_distances_gradients(values, origin, spacing, points, distance, gradient
     """
     ox, oy, oz = origin[0], origin[1], origin[2]
     inv = 1.0 / spacing
-    h = 0.5 * spacing
     for n in range(points.shape[0]):
         x, y, z = points[n, 0], points[n, 1], points[n, 2]
         distance[n] = _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z)
-        gx = (_grid_distance(values, ox, oy, oz, inv, spacing, x + h, y, z)
-              - _grid_distance(values, ox, oy, oz, inv, spacing, x - h, y, z))
-        gy = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y + h, z)
-              - _grid_distance(values, ox, oy, oz, inv, spacing, x, y - h, z))
-        gz = (_grid_distance(values, ox, oy, oz, inv, spacing, x, y, z + h)
-              - _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z - h))
-        norm = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
-        gradient[n, 0] = gx / norm
-        gradient[n, 1] = gy / norm
-        gradient[n, 2] = gz / norm
+        gradient[n, 0], gradient[n, 1], gradient[n, 2] = unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z)
 
 
 @_jit
