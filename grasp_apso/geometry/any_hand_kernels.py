@@ -30,8 +30,8 @@ _inline = numba.njit(cache=True, nogil=True, inline="always")
 #: The grid's trilinear look-up (:func:`.kernels._grid_value`) inlined here: a compiled
 #: call passing the grid array costs its reference counting, about as much as the look-up.
 _grid_value = _inline(_kernels._grid_value.py_func)
-#: The grid's unit gradient (:func:`.kernels.unit_gradient`, inlined there too).
-_unit_gradient = _kernels.unit_gradient
+#: The grid's unit gradient (:func:`.kernels._unit_gradient`, inlined there too).
+_unit_gradient = _kernels._unit_gradient
 
 
 @_inline

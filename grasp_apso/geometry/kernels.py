@@ -153,7 +153,7 @@ def normal_spreads(dist, index, normals, reference, radius, back_cos, out):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z):
+def _unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z):
     """The signed distance's unit gradient at one point, a tuple (gx, gy, gz): central
     differences over half a cell (inlined where called; ``inv`` = 1 / spacing)."""
     h = 0.5 * spacing
@@ -178,7 +178,7 @@ def grid_distances_gradients(values, origin, spacing, points, distance, gradient
     for n in range(points.shape[0]):
         x, y, z = points[n, 0], points[n, 1], points[n, 2]
         distance[n] = _grid_distance(values, ox, oy, oz, inv, spacing, x, y, z)
-        gradient[n, 0], gradient[n, 1], gradient[n, 2] = unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z)
+        gradient[n, 0], gradient[n, 1], gradient[n, 2] = _unit_gradient(values, ox, oy, oz, inv, spacing, x, y, z)
 
 
 @_jit
