@@ -563,8 +563,9 @@ def test_cheap_outside_test_never_rejects_a_force_closure_grasp():
 def test_epsilon_without_facet_merging_equals_qhulls_default():
     """hull_only_epsilon builds the hull without facet merging (FAST_HULL_OPTIONS, about 3x
     faster in 6-D) and falls back to qhull's default where that raises: the value is the
-    default hull's on random grasps of 3-5 contacts and on degenerate wrench sets (a contact
-    repeated, all normals parallel) that make the unmerged build fail."""
+    default hull's on random grasps of 3-5 contacts (some with a contact given twice, which
+    the unmerged build still handles), on two saved wrench sets of planned grasps that make
+    the unmerged build raise, and 0 where every normal is parallel."""
     from scipy.spatial import ConvexHull, QhullError
 
     from grasp_apso.quality.measures import FAST_HULL_OPTIONS, closure_wrenches, hull_only_epsilon
