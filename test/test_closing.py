@@ -255,3 +255,57 @@ def test_hold_score_orders_fragile_grasps_by_epsilon_not_fitness():
     none = hold_score([checked(0.9, 0.3, 0.0, 0.0, closure=False)])
     assert none[0] == pytest.approx(0.01 * 0.9)
 
+
+
+def _closing_problem(rng, n):
+    """A closing_forces problem of n random contacts: (7, n) rows, target, bounds."""
+    p = rng.normal(size=(n, 3)) * 0.04
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    a = np.vstack([u.T, (np.cross(p, u) / 0.04).T, np.ones((1, n)) / n])
+    b = np.zeros(7)
+    b[6] = 2.4
+    return a, b, FLOOR * 2.4, 3.0 * 2.4
+
+
+@pytest.mark.parametrize('shape', ['closing', 'cone edges', 'random', 'rank deficient'])
+def test_the_compiled_bounded_least_squares_is_scipys(shape):
+    """``bounded_lsq`` against SciPy's ``lsq_linear(method="bvls")`` (the reference it
+    replaces) on 300 problems of each shape the closing solves (a column per contact; eight
+    per contact, more columns than rows) and of random ones: the same solution to 1e-12,
+    with bounds active in most (SciPy's BVLS loops exercised, not only its first solve)."""
+    from scipy.optimize import lsq_linear
+
+    from grasp_apso.quality.bounded_lsq import bounded_lsq
+
+    rng = np.random.default_rng(21)
+    active = 0
+    for _ in range(300):
+        n = int(rng.integers(2, 7))
+        if shape == 'closing':
+            a, b, lb, ub = _closing_problem(rng, n)
+        elif shape == 'cone edges':
+            a = rng.normal(size=(6 + 3 * n + 1, 8 * n))
+            b = np.zeros(len(a))
+            b[-1] = 2.4
+            lb, ub = FLOOR * 2.4 / 8, 3.0 * 2.4 / 8
+        elif shape == 'random':
+            a, b, lb, ub = rng.normal(size=(7, n)), 3.0 * rng.normal(size=7), -0.5, 1.0
+        else:  # two equal columns: the solution is not unique; both take the least-norm steps
+            a = rng.normal(size=(7, n))
+            a[:, -1] = a[:, 0]
+            b, lb, ub = 3.0 * rng.normal(size=7), -0.5, 1.0
+        expected = lsq_linear(a, b, bounds=(lb, ub), method='bvls').x
+        got = bounded_lsq(a, b, lb, ub)
+        np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-12)
+        active += bool(np.any(np.isclose(expected, lb) | np.isclose(expected, ub)))
+    assert active >= 150, active
+
+
+def test_the_bounded_least_squares_names_bad_input():
+    from grasp_apso.quality.bounded_lsq import bounded_lsq
+
+    with pytest.raises(ValueError, match='a, b'):
+        bounded_lsq(np.ones((3, 2)), np.ones(2), 0.0, 1.0)
+    with pytest.raises(ValueError, match='lb, ub'):
+        bounded_lsq(np.ones((3, 2)), np.ones(3), 1.0, 1.0)

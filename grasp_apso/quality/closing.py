@@ -27,7 +27,8 @@ with unequal forces in tangential directions, and spheres roll.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import lsq_linear
+
+from .bounded_lsq import bounded_lsq
 
 __all__ = ["closing_forces", "balanced_forces", "squeeze_toward_forces"]
 
@@ -76,7 +77,7 @@ def closing_forces(points: np.ndarray, normals: np.ndarray, center: np.ndarray, 
     if n == 1:
         f = np.array([mean_force])
     else:
-        f = lsq_linear(a_full, b, bounds=(FLOOR * mean_force, CEILING * mean_force), method="bvls").x
+        f = bounded_lsq(a_full, b, FLOOR * mean_force, CEILING * mean_force)
     imbalance = float(np.linalg.norm(a @ f) / max(f.sum(), 1e-12))
     return f, imbalance
 
@@ -129,8 +130,7 @@ def balanced_forces(points: np.ndarray, normals: np.ndarray, center: np.ndarray,
     rows = np.vstack([wrench, tangential, np.ones((1, n * CONE_EDGES)) / n])
     target = np.zeros(rows.shape[0])
     target[-1] = mean_force
-    lam = lsq_linear(rows, target, bounds=(FLOOR * mean_force / CONE_EDGES, CEILING * mean_force / CONE_EDGES),
-                     method="bvls").x
+    lam = bounded_lsq(rows, target, FLOOR * mean_force / CONE_EDGES, CEILING * mean_force / CONE_EDGES)
     forces = (lam.reshape(n, CONE_EDGES, 1) * edges).sum(axis=1)
     return forces, float(np.linalg.norm(wrench @ lam) / max(lam.sum(), 1e-12))
 
