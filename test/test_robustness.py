@@ -148,3 +148,38 @@ def test_the_quick_outside_test_leaves_every_value_as_the_hull_gives_it(cube):
         zeros += value == 0.0
         positives += value > 0.0
     assert zeros >= 10 and positives >= 10  # both kinds were drawn
+
+
+@pytest.mark.parametrize('name', ['cube', 'barrel', 'mug'])
+def test_the_closest_face_is_trimeshs_on_faces_edges_and_corners(name, monkeypatch):
+    """The thin-wall filter's closest face (``_closest_faces``, from the prefilter's own
+    distances) is the one ``trimesh.proximity.closest_point`` returns, for contacts on the
+    surface, off it, inside it, and on edges and corners where two faces tie (there trimesh
+    decides); the uncertainty is then the same as with trimesh's face."""
+    import trimesh
+
+    from grasp_apso.model.mesh_files import from_file
+    from grasp_apso.quality import robustness
+
+    obj = builtin(name) if name != 'mug' else from_file('grasp_apso/data/meshes/mug.stl')
+    mesh = obj.mesh
+    rng = np.random.default_rng(5)
+    surface, _ = trimesh.sample.sample_surface(mesh, 600, seed=5)
+    on_edges = mesh.vertices[mesh.edges_unique].mean(axis=1)[:200]
+    points = np.concatenate([surface, surface + rng.normal(0.0, 0.002, surface.shape), on_edges,
+                             mesh.vertices[:100]])
+    tri, lo, hi = robustness._face_boxes(obj)
+    r = robustness.DEFAULT_RADIUS
+    near = np.all((points[:, None, :] >= lo[None] - r) & (points[:, None, :] <= hi[None] + r), axis=2)
+    ci, fi = np.nonzero(near)
+    closest = trimesh.triangles.closest_point(tri[fi], points[ci])
+    d2 = np.einsum('ij,ij->i', closest - points[ci], closest - points[ci])
+    expected = trimesh.proximity.closest_point(mesh, points)[2]
+    asked = []  # the contacts trimesh is asked about (it still answers them)
+    query = trimesh.proximity.closest_point
+    monkeypatch.setattr(trimesh.proximity, 'closest_point', lambda m, p: asked.append(len(p)) or query(m, p))
+    faces = robustness._closest_faces(mesh, points, ci, fi, d2, r)
+    np.testing.assert_array_equal(faces, expected)
+    # the edges and corners tie, and a few contacts lie deep inside (no face within r):
+    # trimesh decides those; the shortcut the rest
+    assert 0 < sum(asked) < 0.35 * len(points), (sum(asked), len(points))

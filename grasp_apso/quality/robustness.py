@@ -43,6 +43,9 @@ DEFAULT_RADIUS: float = 0.004
 #: Faces whose normal is more than 120 degrees from the closest face's normal are the far
 #: side of a thin wall (a mug's inner wall), not part of the contact's neighbourhood.
 BACK_FACE_COS: float = -0.5
+#: m^2: two squared distances closer than this may be ordered otherwise by another
+#: summation order (their rounding: about 1e-26 at a few millimetres): treated as a tie.
+ROUNDING: float = 1e-15
 
 
 def _points(value: ArrayLike, name: str) -> NDArray[np.float64]:
@@ -108,14 +111,12 @@ def normal_uncertainty(obj, points: ArrayLike, radius: float = DEFAULT_RADIUS) -
     tri, lo, hi = _face_boxes(obj)                       # (F, 3, 3), (F, 3), (F, 3)
     normals = np.asarray(mesh.face_normals)              # (F, 3)
     areas = np.asarray(mesh.area_faces)                  # (F,)
-    # the closest triangle of each contact (for the thin-wall filter)
-    _, _, closest_face = trimesh.proximity.closest_point(mesh, pts)
-    n0 = normals[closest_face]                           # (k, 3)
     # box prefilter: (k, F) candidates, then exact distances for the survivors
     near_box = np.all((pts[:, None, :] >= lo[None] - radius) & (pts[:, None, :] <= hi[None] + radius), axis=2)
     ci, fi = np.nonzero(near_box)
     closest = trimesh.triangles.closest_point(tri[fi], pts[ci])
     d2 = np.einsum("ij,ij->i", closest - pts[ci], closest - pts[ci])
+    n0 = normals[_closest_faces(mesh, pts, ci, fi, d2, radius)]   # (k, 3), for the thin-wall filter
     facing = np.einsum("ij,ij->i", normals[fi], n0[ci]) > BACK_FACE_COS
     w = np.where(facing, np.minimum(areas[fi], math.pi * np.maximum(radius ** 2 - d2, 0.0)), 0.0)
     k = pts.shape[0]
@@ -129,6 +130,39 @@ def normal_uncertainty(obj, points: ArrayLike, radius: float = DEFAULT_RADIUS) -
     num = np.bincount(ci, weights=w * angle ** 2, minlength=k)
     den = np.bincount(ci, weights=w, minlength=k)
     return np.sqrt(np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0))
+
+
+def _closest_faces(mesh, pts: NDArray, ci: NDArray, fi: NDArray, d2: NDArray, radius: float) -> NDArray[np.int64]:
+    """The face of ``mesh`` closest to each contact pts (k, 3), as
+    ``trimesh.proximity.closest_point`` finds it, from the candidate faces (ci, fi) and
+    their squared distances d2 (the box prefilter within ``radius``).
+
+    trimesh returns the nearest face of its candidates (which hold it) unless its two nearest
+    lie within its ``tol.merge`` of each other (in squared distance) and both farther than
+    that, when the normals decide. Where a contact's nearest candidate (a face outside the
+    prefilter lies beyond ``radius``) is unique and trimesh's tie rule cannot apply, that
+    face is trimesh's answer; for the other contacts (on or near an edge, or farther than
+    ``radius`` from the surface) trimesh is asked, for them alone. Its query cost 0.8 of the
+    1.5 ms of a grasp's uncertainty."""
+    k = len(pts)
+    best = np.full(k, np.inf)
+    np.minimum.at(best, ci, d2)
+    rows = np.flatnonzero(d2 == best[ci])
+    first = np.zeros(len(ci), dtype=bool)  # one pair at each contact's minimum
+    first[rows[np.unique(ci[rows], return_index=True)[1]]] = True
+    second = np.full(k, radius * radius)  # the next face's, at most radius^2 (an exact tie: the minimum)
+    np.minimum.at(second, ci[~first], d2[~first])
+    face = np.zeros(k, dtype=np.int64)
+    face[ci[first]] = fi[first]
+    merge = trimesh.tol.merge
+    # trimesh's answer is the nearest face unless its two nearest lie within ``merge`` of each
+    # other and both farther than ``merge`` (then the normals decide); an exact tie, or one
+    # within rounding, goes to trimesh too
+    own = (best + merge <= second) | ((best <= merge) & (best + ROUNDING < second))
+    ties = np.flatnonzero(~own)
+    if len(ties):
+        face[ties] = trimesh.proximity.closest_point(mesh, pts[ties])[2]
+    return face
 
 
 def _shrunk_cone_wrenches(points: NDArray, normals: NDArray, com: NDArray, mu: float, beta: NDArray,
