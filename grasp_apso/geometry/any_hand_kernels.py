@@ -279,6 +279,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                 if mov[f, l] == 0:
                     fixed = min(fixed, open_clear[p, f, l])
             s = 0.0
+            posed = 0.0  # the closing parameter the moving links' poses are at
             met = c0 <= 0.0
             if not met:
                 lo, hi = 0.0, -1.0
@@ -286,6 +287,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                     sk = k / coarse
                     _set_closing(q, qp, f, K, sk)
                     finger_poses(q, f, K, poses, tmp, local, True)
+                    posed = sk
                     if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc, c,
                                                     True)) <= 0.0:
                         hi = sk
@@ -299,6 +301,7 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                         mid = 0.5 * (lo + hi)
                         _set_closing(q, qp, f, K, mid)
                         finger_poses(q, f, K, poses, tmp, local, True)
+                        posed = mid
                         if min(fixed, _finger_clearance(values, origin, spacing, r, t, poses, f, K, 0.0, lc,
                                                         c, True)) <= 0.0:
                             hi = mid
@@ -306,7 +309,8 @@ def close_fingers(values, origin, spacing, rot, trans, q0, K, coarse, refine, cu
                             lo = mid
                     s = lo
             _set_closing(q, qp, f, K, s)
-            finger_poses(q, f, K, poses, tmp, local, True)
+            if posed != s:  # (the sweep's last step already posed the links at s: the same poses)
+                finger_poses(q, f, K, poses, tmp, local, True)
             _finger_clearance(values, origin, spacing, r, t, poses, f, K, cutoff, link_clear[p, f], c)
             pad_gap[p, f] = _pad(values, origin, spacing, r, t, poses, f, K, pad_pos[p, f])
             _point_at(r, t, poses, K[_PADL][f], pad_point[f, 0], pad_point[f, 1], pad_point[f, 2], pads[p, f])
