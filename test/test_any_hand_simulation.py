@@ -487,6 +487,42 @@ def test_a_urdf_inertia_with_a_negative_moment_is_raised_and_simulates(tmp_path)
     assert not result.held and np.isfinite(result.max_shift)  # it runs: an empty hand drops the sphere
 
 
+def test_a_urdf_inertia_with_a_zero_moment_is_raised_and_simulates(tmp_path):
+    """A CAD export rounding its inertias to 1e-6 leaves moments of zero (DexHand's URDF,
+    ``iotdesignshop/dexhand_description``: ``ixx="1e-06" ... izz="0.0"`` on 12 finger links,
+    all zero on two): MuJoCo refused the whole hand ("inertia must have positive
+    eigenvalues") before its ``boundinertia`` could raise them, and ``simulate`` checked no
+    grasp. The zero moment is raised to the simulation's floor about the same axes (a
+    rotated one too), the others kept; an all-zero inertia is left to MuJoCo."""
+    path = write_allegro_like(tmp_path, "none")
+    root = ET.parse(path)
+    c, s = math.cos(0.5), math.sin(0.5)  # the zero moment's axis turned 0.5 rad about z
+    turned = 1e-6 * np.array([[s * s, -c * s, 0.0], [-c * s, c * c, 0.0], [0.0, 0.0, 1.0]])
+    values = {"index_distal": dict(ixx="1e-06", ixy="-0.0", ixz="-0.0", iyy="1e-06", iyz="-0.0", izz="0.0"),
+              "middle_distal": dict(ixx="0.0", ixy="0.0", ixz="0.0", iyy="0.0", iyz="0.0", izz="0.0"),
+              "ring_distal": {k: repr(float(turned[i, j])) for k, (i, j) in
+                              zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"),
+                                  ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))}}
+    for name, inertia in values.items():
+        link = next(l for l in root.getroot().iter("link") if l.get("name") == name)
+        inertial = ET.SubElement(link, "inertial")
+        ET.SubElement(inertial, "mass", value="0.016")
+        ET.SubElement(inertial, "inertia", **inertia)
+    root.write(path)
+    hand = load_hand(path, spheres=False)
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), FAR, np.eye(4), hand.open_configuration())
+    floor = 1e-8  # (the simulation's _MIN_INERTIA, MuJoCo's boundinertia)
+    for name in values:
+        body = sc.model.body(name).id
+        assert sc.model.body_mass[body] == pytest.approx(0.016), name
+        assert np.min(sc.model.body_inertia[body]) >= floor * (1 - 1e-9), name
+    assert np.sort(sc.model.body_inertia[sc.model.body("index_distal").id]) == pytest.approx([floor, 1e-6, 1e-6])
+    assert np.sort(sc.model.body_inertia[sc.model.body("ring_distal").id]) == pytest.approx([floor, 1e-6, 1e-6])
+    q = hand.open_configuration()
+    result = simulate_any_hand(hand, builtin("sphere"), np.eye(4), FAR, q, q, q, settings=QUICK)
+    assert not result.held and np.isfinite(result.max_shift)  # it runs
+
+
 def test_gazebo_tuned_joint_friction_and_damping_are_capped_and_the_fingers_close(tmp_path):
     """Wonik's Allegro V5 URDF gives its finger joints ``<dynamics friction>`` of 5-12 N m
     and damping of 3-10 N m s/rad (for its own 15 N m actuators): against this check's

@@ -156,9 +156,11 @@ def _repair_inertias(root) -> list[str]:
     must have positive eigenvalues") and ``balanceinertia`` does not mend it; the moments
     (the diagonal, at least :data:`_MIN_INERTIA`) are kept, then balanced by MuJoCo as any
     other link's. Keeping the principal axes instead (the negative moment raised) keeps a
-    moment 1000 times too large: the V5 then held 4 of 21 best grasps. Any other inertia
-    is left as written. Returns the links changed (the hand loader notes them:
-    :mod:`grasp_apso.model.hands.urdf_loader`)."""
+    moment 1000 times too large: the V5 then held 4 of 21 best grasps. A physical inertia
+    with a principal moment below :data:`_MIN_INERTIA` (zero: MuJoCo refuses that too) gets
+    that moment raised to it about its principal axes, as ``boundinertia`` raises the
+    others. Any other inertia is left as written. Returns the links changed (the hand
+    loader notes the unphysical ones: :mod:`grasp_apso.model.hands.urdf_loader`)."""
     changed = []
     for link in root.findall("link"):
         element = link.find("inertial/inertia")
@@ -169,10 +171,21 @@ def _repair_inertias(root) -> list[str]:
         except ValueError:
             continue  # MuJoCo names the attribute it cannot read
         matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        if not np.all(np.isfinite(matrix)) or not unphysical_inertia(matrix):
-            continue  # (not finite: MuJoCo names it; a zero moment: raised by boundinertia)
-        for key, value in zip(_INERTIA_KEYS, (xx, 0.0, 0.0, yy, 0.0, zz)):
-            element.set(key, repr(max(value, _MIN_INERTIA) if key in ("ixx", "iyy", "izz") else value))
+        if not np.all(np.isfinite(matrix)) or not matrix.any():
+            continue  # (not finite: MuJoCo names it; all zero: MuJoCo bounds it as a massless link's)
+        if unphysical_inertia(matrix):
+            values = (xx, 0.0, 0.0, yy, 0.0, zz)
+        else:
+            moments, axes = np.linalg.eigh(matrix)
+            if moments[0] >= _MIN_INERTIA:
+                continue
+            # A principal moment of zero (a CAD export rounding to 1e-6: DexHand's finger
+            # links, "1e-06 1e-06 0.0"): MuJoCo refuses it before ``boundinertia`` raises
+            # it, so raised here as that would, about the same principal axes.
+            full = (axes * np.maximum(moments, _MIN_INERTIA)) @ axes.T
+            values = (full[0, 0], full[0, 1], full[0, 2], full[1, 1], full[1, 2], full[2, 2])
+        for key, value in zip(_INERTIA_KEYS, values):
+            element.set(key, repr(float(max(value, _MIN_INERTIA) if key in ("ixx", "iyy", "izz") else value)))
         changed.append(link.get("name", ""))
     return changed
 
