@@ -312,7 +312,7 @@ def test_simulate_searches_again_until_a_grasp_held(hands, searches):
 def test_simulate_searches_an_object_with_no_long_axis_only_with_its_own_guidance(hands, searches):
     """The bowl (sphere-like: no long axis to turn) with a small swarm, whose grasps all
     drop: the plan stops after ``TURNED_ROUNDS_FROM`` searches, none turned, and returns the
-    grasps of the first search with their verdicts."""
+    grasps of the first search of the best class with their verdicts."""
     from grasp_apso.search.any_hand_planner import SIMULATED_ROUNDS, TURNED_ROUNDS_FROM
     from grasp_apso.search.result import SIM_DROPPED
 
@@ -323,6 +323,33 @@ def test_simulate_searches_an_object_with_no_long_axis_only_with_its_own_guidanc
     assert TURNED_ROUNDS_FROM < SIMULATED_ROUNDS
     assert searches == [False] * TURNED_ROUNDS_FROM
     assert [c.sim_result for c in result.candidates] == [SIM_DROPPED]
+
+
+def test_simulate_without_the_simulation_answers_as_without_it(hands, searches, monkeypatch):
+    """When the simulation cannot run (MuJoCo not installed here; a hand file MuJoCo
+    refuses, as DexHand's zero inertias did before 90d432c, the same way) ``simulate``
+    cannot hold a grasp. The plan no longer searches ``TURNED_ROUNDS_FROM`` times for one:
+    it stops once a search found force closure, as without ``simulate``, and returns the
+    grasps of the search of the best class, not the first search's (DexHand's mug: the
+    first search's five grasps without force closure where a later one had three with it);
+    the reply says why nothing was simulated."""
+    from grasp_apso.search import any_hand_select
+    from grasp_apso.search.any_hand_planner import NO_CLOSURE_ROUNDS
+    from grasp_apso.search.result import SIM_NOT_RUN
+
+    found = any_hand_select.optional_module
+    monkeypatch.setattr(any_hand_select, "optional_module",
+                        lambda name: None if name == "grasp_apso.simulation.any_hand" else found(name))
+    obj = _object("mug")
+    table = Scene.table_under(np.asarray(obj.mesh.vertices))
+    for seed in (0, 1):
+        searches.clear()
+        result = plan(obj, options=PlanOptions(max_grasps=3, simulate=True), rng=np.random.default_rng(seed),
+                      hand=hands["allegro"], scene=table)
+        assert "MuJoCo check of a general hand is not available" in result.candidates_message
+        assert all(c.sim_result == SIM_NOT_RUN for c in result.candidates)
+        assert all(c.force_closure for c in result.candidates), seed
+        assert 1 <= len(searches) <= NO_CLOSURE_ROUNDS, (seed, len(searches))
 
 
 def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, searches):

@@ -26,7 +26,7 @@ from .any_hand_select import best_class, build_result, select_any
 from .grg import classify_shape
 from .options import PlanOptions
 from .problem import ARCHIVE_FACTOR, SwarmProblem
-from .result import SIM_HELD
+from .result import SIM_HELD, SIM_NOT_RUN
 from .swarm import IterationStats, run_swarm
 
 __all__ = ["AnyHandProblem", "plan_any_hand", "prepare_any_hand", "warm_up_any_hand", "SIMULATED_ROUNDS",
@@ -182,14 +182,23 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             if any(c.sim_result == SIM_HELD for c in result.candidates):
                 first = result
                 break
-            first = first or result
+            # none held: the round of the best class (force closure over none), the earlier
+            # of equal ones
+            if first is None or best_class(checked) > first_class:
+                first, first_class = result, best_class(checked)
+            if all(c.sim_result == SIM_NOT_RUN for c in result.candidates) and (
+                    first_class >= CLOSURE_CLASS or round_ + 1 >= NO_CLOSURE_ROUNDS):
+                # The simulation did not run (MuJoCo refused the hand: the reply says why);
+                # later rounds could not hold either: searched on only as without
+                # ``simulate`` while no force-closure grasp was found.
+                break
         else:
             first, first_class, first_checked = result, best_class(checked), tuple(checked)
             if first_class >= BALANCED_CLASS:
                 break
         if swarm.cancelled or (should_stop is not None and should_stop()):
             break
-    # simulate: a round with a grasp that held, else the first round that found grasps;
+    # simulate: a round with a grasp that held, else the first round of the best class;
     # otherwise the grasps of every round, ranked together
     return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
                    planning_time=time.perf_counter() - t1)
