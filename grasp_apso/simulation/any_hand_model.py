@@ -13,9 +13,9 @@
   that chain fixed where the held values put them, the top body placed so that the root
   body is at ``root_pose``; the hand's moving joints start from the root, welded to the
   world without a soft constraint.
-- Hand self-contacts are the file's, except between bodies whose geoms already overlap
-  in the open posture (a thumb base modelled inside the palm box): those pairs are
-  excluded, else the solver pushes the joints off their targets.
+- No hand self-contacts: the hand's geoms collide with the object and the scene only
+  (MuJoCo collides a mesh as its convex hull, far beyond a concave link; the planner
+  checks the hand against itself on its exact geometry): :func:`_no_hand_self_contacts`.
 - Compiled once per (object, hand, scene, settings) and cached (MuJoCo compiles a hand of
   many meshes in 0.5 s); each grasp moves a copy (the top body, the object's free joint).
 - Position servos (gain ``settings.kp``, raised on joints the file damps more so that the
@@ -62,6 +62,9 @@ OBJECT_BODY = "grasp_object"
 SCENE_GEOM_PREFIX = "scene_"
 #: Every contype / conaffinity bit MuJoCo has (int32, sign bit excluded).
 _ALL_BITS = (1 << 31) - 1
+#: A hand geom's contype and conaffinity: no common bit (hand geoms never collide with
+#: one another), each within _ALL_BITS (they collide with the object and the scene).
+_HAND_TYPE, _HAND_AFFINITY = 1, 2
 #: Lower bounds of a hand body's mass (kg) and inertia (kg m^2) (MuJoCo's boundmass /
 #: boundinertia).
 _MIN_MASS = 0.001
@@ -291,72 +294,30 @@ def _set_joints(model, data, values) -> None:
             data.qpos[model.jnt_qposadr[j]] = value
 
 
-def _exclude_overlaps(spec, model, hand, postures) -> None:
-    """Exclude the contacts of hand body pairs whose geoms already overlap at one of
-    ``postures`` ((m,) full joint vectors): the file's own overlapping geometry (a thumb
-    base inside the palm box) would otherwise push the joints off their targets."""
-    import mujoco
-
-    data = mujoco.MjData(model)
-    # (A body and the body it hinges on: MuJoCo filters their contacts, and
-    # _keep_parent_filter where the latter is welded to the world.)
-    pairs = set()
-    for full in postures:
-        _set_joints(model, data, zip(hand.joint_names, full))
-        mujoco.mj_fwdPosition(model, data)
-        for c in data.contact[:data.ncon]:
-            if c.dist < 0:
-                a, b = (model.body(model.geom_bodyid[g]).name for g in (c.geom1, c.geom2))
-                pairs.add(tuple(sorted((a, b))))
-    for a, b in sorted(pairs):
-        spec.add_exclude(bodyname1=a, bodyname2=b)
-
-
-def _keep_parent_filter(spec, chain) -> None:
-    """Exclude the contacts of each moving body (and the bodies fixed below it) with the
-    bodies it hinges on (its parent and the bodies fixed to that parent in the file) where
-    those are about to be welded to the world (``chain``, the bodies from the world to the
-    root, and the bodies fixed to them). MuJoCo filters a body's contacts with its parent,
-    but not when the parent is welded to the world: the root's children (a thumb base turning on the palm, LEAP's)
-    would collide with the link they hinge on, where the hand free in space (as
-    DexGraspBench simulates it) and the planner's python-fcl check (adjacent links are never
-    checked) let them overlap. Measured before: in a grasp of the sphere LEAP's thumb base
-    stood 1.9 mm inside its palm with a contact force of the order of 1e15 N (the best
-    grasps held by default on 6 hands were the same with and without the filter)."""
-    static = {body.name for body in chain}
-    for body in spec.bodies:  # parents before children
-        if body.parent is not None and body.parent.name in static and not body.joints:
-            static.add(body.name)
-    excluded = {frozenset((ex.bodyname1, ex.bodyname2)) for ex in spec.excludes}
-    for body in spec.bodies:
-        if body.name in static or not body.joints or body.parent is None:
-            continue
-        # MuJoCo's filter is by weld group: the body with the bodies fixed below it, against
-        # its parent with the bodies the parent is fixed to (an ORCA finger's link fixed
-        # below the joint body that hinges on the palm)
-        group, below = [body.name], list(body.bodies)
-        while below:
-            child = below.pop()
-            if not child.joints:
-                group.append(child.name)
-                below.extend(child.bodies)
-        parent = body.parent
-        while parent is not None and parent.name != "world":  # the parent's weld group in the file
-            if parent.name in static:
-                for name in group:
-                    pair = frozenset((parent.name, name))
-                    if pair not in excluded:
-                        spec.add_exclude(bodyname1=parent.name, bodyname2=name)
-                        excluded.add(pair)
-            if parent.joints:
-                break
-            parent = parent.parent
+def _no_hand_self_contacts(spec) -> None:
+    """The hand's geoms collide with the object and the scene only (contype
+    :data:`_HAND_TYPE`, conaffinity :data:`_HAND_AFFINITY`; the object's and the scene's
+    geoms have every bit), not with one another; the file's visual geoms (no bits) stay
+    out. Why: MuJoCo collides a mesh as its convex hull, and a concave link's hull reaches
+    far beyond it: DexHand's URDF (``iotdesignshop/dexhand_description``) at its planned
+    grasp of the orange had its thumb base 21 mm inside a palm part's hull and its middle
+    and index phalanges 7.6 mm inside each other's, which held the index finger at 1 degree
+    of its 22.5 and no finger reached the object (its best grasps held 3 of 21 in this
+    check, 13 with DexGraspBench's parameters; without these contacts 13 and 18). The
+    planner checks the hand against itself on its exact geometry (python-fcl) at the grasp
+    and the pre-grasp, and the closing moves between them; so the simulation leaves those
+    contacts out, as it left out before, pair by pair, the links the file has overlapping
+    in the open posture (a thumb base modelled inside the palm box) and a link against the
+    palm it hinges on (LEAP's thumb base, 1.9 mm inside its palm with a contact force of
+    1e15 N)."""
+    for geom in spec.geoms:
+        if int(geom.contype) or int(geom.conaffinity):
+            geom.contype, geom.conaffinity = _HAND_TYPE, _HAND_AFFINITY
 
 
-def _hold_root(spec, hand, postures) -> np.ndarray:
+def _hold_root(spec, hand) -> np.ndarray:
     """Fix the chain from the world to the root link at the held joint values (its
-    joints removed), the top body at the world origin; exclude the contacts of bodies that
-    overlap at ``postures`` (:func:`_exclude_overlaps`). Returns the root body's pose in
+    joints removed), the top body at the world origin. Returns the root body's pose in
     the top body's frame (4, 4)."""
     import mujoco
 
@@ -370,8 +331,6 @@ def _hold_root(spec, hand, postures) -> np.ndarray:
         model = spec.compile()
     except Exception as exc:
         raise SimulationError(f"simulation: MuJoCo cannot compile hand {hand.name!r}: {exc}") from exc
-    _exclude_overlaps(spec, model, hand, postures)
-    _keep_parent_filter(spec, chain)
     data = mujoco.MjData(model)
     _set_joints(model, data, hand.held_joints.items())
     mujoco.mj_kinematics(model, data)
@@ -543,7 +502,8 @@ def _compile_template(hand, obj, parts, scene, settings: SimulationSettings) -> 
         top = top.parent
     top_name = top.name
     _keep_only_the_hand(spec, top_name)
-    top_to_root = _hold_root(spec, hand, [hand.full_positions(hand.open_configuration())])
+    top_to_root = _hold_root(spec, hand)
+    _no_hand_self_contacts(spec)
     _add_servos(spec, hand, settings)
     priority = 1 + max([int(g.priority) for g in spec.geoms] + [0])
     _add_object(spec, parts, settings, priority)
