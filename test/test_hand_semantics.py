@@ -373,6 +373,53 @@ def _mjcf(tmp_path, fingers: int, visual_missing=False, collision_missing=False)
     return path
 
 
+def test_an_mjcf_using_materials_it_does_not_define_loads_and_simulates(tmp_path):
+    """A hand file made to be included in a scene that defines its materials (an Inspire
+    RH56DFTP's ``inspire_hand_right.xml``, included by its ``scene.xml``): MuJoCo refused the
+    file alone ("material 'hand_white' not found"). A material only colours a geom: the
+    geoms are drawn without it, with a note, and the hand loads and simulates as the same
+    file with the materials defined."""
+    from grasp_apso.model.builtin import builtin
+    from grasp_apso.simulation.any_hand import prepare_any_hand
+
+    defined = _mjcf(tmp_path, 2)
+    text = defined.read_text()
+    coloured = text.replace('<geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007"/>',
+                            '<geom type="capsule" fromto="0 0 0 0 0 0.03" size="0.007" material="hand_dark"/>')
+    coloured = coloured.replace('<geom type="box" size="0.04 0.04 0.01"/>',
+                                '<geom type="box" size="0.04 0.04 0.01" material="hand_white"/>')
+    undefined = tmp_path / "undefined_materials.xml"
+    undefined.write_text(coloured)
+    (tmp_path / "defined_materials.xml").write_text(coloured.replace(
+        "<asset>", '<asset><material name="hand_dark" rgba="0.2 0.2 0.2 1"/><material name="hand_white"/>'))
+    hand = load_hand(undefined, spheres=False)
+    assert [n for n in hand.notes if n.startswith("material")] == [
+        f"material {m}: not defined in the file (a scene including it defines it?): its geoms drawn without it"
+        for m in ("hand_dark", "hand_white")]
+    same = load_hand(tmp_path / "defined_materials.xml", spheres=False)
+    assert not [n for n in same.notes if n.startswith("material")]
+    assert hand.actuated_joints == same.actuated_joints
+    assert [f.pad_center.tolist() for f in hand.fingers] == [f.pad_center.tolist() for f in same.fingers]
+    sc, _ = prepare_any_hand(hand, builtin("sphere"), np.eye(4), np.eye(4), hand.open_configuration())
+    assert sc.model.ngeom > 0
+
+
+def test_a_urdf_mesh_in_a_folder_beside_the_urdfs_is_named(allegro_file, tmp_path):
+    """An Inspire RH56DFTP URDF names its collision meshes as lying beside it
+    (``right_base_link.obj``); they lie in ``../collision/``: the error names the file
+    found in the tree above the URDF's folder, and loads nothing."""
+    import shutil
+
+    root = tmp_path / "Inspire_hand"
+    (root / "urdf").mkdir(parents=True)
+    shutil.copytree(allegro_file.parent / "meshes", root / "collision")
+    urdf = root / "urdf" / "hand.urdf"
+    urdf.write_text(allegro_file.read_text().replace('filename="meshes/', 'filename="'))
+    with pytest.raises(HandDescriptionError, match=r"not found \(the URDF names \w+\.stl\) \(a file of that name "
+                                                   r"is at .*Inspire_hand/collision/\w+\.stl: is the URDF's path wrong"):
+        load_hand(urdf, spheres=False)
+
+
 def test_a_closed_linkage_in_an_mjcf_is_noted(tmp_path):
     # A parallel gripper's four-bar (menagerie's Robotiq 2F-85): a connect equality closes a
     # loop the open-tree kinematics do not follow; the user is told when checking the hand.

@@ -30,6 +30,7 @@ import trimesh
 
 from ...errors import HandDescriptionError
 from .description import RawHand, RawJoint, RawLink, rigid
+from .file_search import find_in_tree
 from .geometry import LinkGeometry
 from .model import Coupling
 
@@ -38,8 +39,6 @@ __all__ = ["read_mjcf", "open_spec"]
 #: A limited fixed tendon couples its two joints when its range is at most this
 #: fraction of the length span its joints' ranges allow.
 _NARROW_TENDON = 0.25
-#: How many files :func:`_meshdir_hint` looks at in the description's folder tree at most.
-_SCAN_FILES = 20000
 
 
 def _quat_matrix(q: np.ndarray) -> np.ndarray:
@@ -51,8 +50,9 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
 
 def open_spec(path: Path, notes: list[str], max_mesh_bytes: int | None = None):
     """The file's ``mujoco.MjSpec`` with its visual-only meshes whose files are missing
-    removed (noted in ``notes``); a missing collision mesh, or one over ``max_mesh_bytes``
-    (default: the tunable ``max_hand_file_bytes``), is an error naming it."""
+    removed and the materials it uses without defining them left off its geoms (noted in
+    ``notes``); a missing collision mesh, or one over ``max_mesh_bytes`` (default: the
+    tunable ``max_hand_file_bytes``), is an error naming it."""
     if max_mesh_bytes is None:
         from ... import tunables
 
@@ -84,6 +84,17 @@ def open_spec(path: Path, notes: list[str], max_mesh_bytes: int | None = None):
             spec.delete(g)
         spec.delete(mesh)
         notes.append(f"mesh {mesh.name}: file {file.name} missing, visual only: ignored")
+    # A material the file uses but does not define (a hand file made to be included in a
+    # scene that defines them: an Inspire RH56DFTP's inspire_hand_right.xml) makes MuJoCo
+    # refuse the model; a material only colours a geom.
+    defined = {m.name for m in spec.materials}
+    undefined = sorted({g.material for g in spec.geoms if g.material and g.material not in defined})
+    for g in spec.geoms:
+        if g.material in undefined:
+            g.material = ""
+    for name in undefined:
+        notes.append(f"material {name}: not defined in the file (a scene including it defines it?): "
+                     "its geoms drawn without it")
     return _lift_fused_base(spec, path, notes)
 
 
@@ -101,25 +112,19 @@ def _moving_tops(spec) -> list:
 
 def _meshdir_hint(folder: Path, written: str) -> str:
     """Where a mesh file the MJCF names (``written``, as in its ``file``) lies in the tree of
-    the description's ``folder`` (at most :data:`_SCAN_FILES` files looked at), as a hint for
+    the description's ``folder`` (at most :data:`.file_search.SCAN_FILES` files looked at), as a hint for
     the error: a model file copied out of the folder its ``meshdir`` is relative to (one of
     a Unitree G1 repository's Inspire hand files names ``meshes/inspire_hands/...`` beside
     it, the meshes lying under ``unitree_g1/assets``). Empty when none is found."""
     if Path(written).is_absolute():
         return ""
     tail = Path(written).parts
-    seen = 0
-    for top, _, names in os.walk(folder):
-        seen += len(names)
-        if seen > _SCAN_FILES:
-            break
-        if tail[-1] in names:
-            found = Path(top) / tail[-1]
-            if found.parts[-len(tail):] == tail:
-                base = Path(*found.parts[:-len(tail)]) if len(found.parts) > len(tail) else Path("/")
-                return (f" (a file of that name is at {found}: <compiler meshdir=\"{os.path.relpath(base, folder)}\"/> "
-                        "would find it; is the model file out of its folder?)")
-    return ""
+    found = find_in_tree(folder, tail)
+    if found is None:
+        return ""
+    base = Path(*found.parts[:-len(tail)]) if len(found.parts) > len(tail) else Path("/")
+    return (f" (a file of that name is at {found}: <compiler meshdir=\"{os.path.relpath(base, folder)}\"/> "
+            "would find it; is the model file out of its folder?)")
 
 
 def _lift_fused_base(spec, path: Path, notes: list[str]):

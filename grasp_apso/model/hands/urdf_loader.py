@@ -21,6 +21,7 @@ import trimesh
 
 from ...errors import HandDescriptionError
 from .description import RawHand, RawJoint, RawLink
+from .file_search import find_in_tree
 from .geometry import LinkGeometry
 from .model import Coupling
 
@@ -65,12 +66,16 @@ def read_collision_mesh(path: Path, where: str, max_bytes: int, base_dir: Path |
     address was looked for); with ``base_dir`` (the description's folder) it names a file
     of the same name beside the description, a folder up, or in their ``meshes/`` folders
     (an exporter that wrote ``filename="/base_link.STL"``, a URDF copied out of its
-    package): told, not taken, as RViz would not take it."""
+    package), else anywhere in the tree of the folder above (an Inspire URDF naming
+    ``right_base_link.obj`` beside it, the file in ``../collision/``): told, not taken, as
+    RViz would not take it."""
     if not path.is_file():
         near = []
         if base_dir is not None:
             folders = (base_dir, base_dir / "meshes", base_dir.parent, base_dir.parent / "meshes")
             near = [folder / path.name for folder in folders if (folder / path.name).is_file()]
+            if not near:  # elsewhere in the tree of the description's folder's parent (a collision/ beside urdf/)
+                near = [found] if (found := find_in_tree(base_dir.parent, (path.name,))) is not None else []
         hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
         named = ""
         if uri is not None and uri.startswith("package://") and base_dir is not None:
