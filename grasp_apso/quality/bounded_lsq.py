@@ -68,10 +68,8 @@ def _bvls(a, b, lb, ub, tol, max_iter):
     r = a @ x - b
     cost = 0.5 * np.dot(r, r)
     g = a.T @ r
-    iteration = 0
     # SciPy's initialisation: the free variables' solution, violators set to their bounds
-    while free.shape[0] > 0:
-        iteration += 1
+    while free.shape[0] > 0:  # (each pass fixes a variable or ends: at most n)
         z = _solve_free(a, b, x, on_bound, free, rcond)
         keep = np.ones(free.shape[0], dtype=np.bool_)
         for k in range(free.shape[0]):
@@ -94,11 +92,11 @@ def _bvls(a, b, lb, ub, tol, max_iter):
             break
         free = free[keep]
     optimality = _kkt(g, on_bound)
-    for _ in range(iteration, max_iter + iteration):  # loop A
+    for _ in range(max_iter):  # loop A
         if optimality < tol:
             break
         on_bound[np.argmax(g * on_bound)] = 0.0
-        while True:  # loop B
+        for _ in range(n + 1):  # loop B: each pass but the last puts a free variable on a bound
             free = np.flatnonzero(on_bound == 0.0)
             x_free = x[free]
             z = _solve_free(a, b, x, on_bound, free, rcond) if free.shape[0] else np.empty(0)
