@@ -537,7 +537,8 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     (docs/any-hand-measurements.md), runs every search; the sphere, whose first search found
     force closure that is not balanced and whose second found nothing above it, searches a
     third time, finds a balanced grasp and stops there (up to 2026-12-07 it stopped after
-    two searches with the unbalanced grasp)."""
+    two searches with the unbalanced grasp). A plan without force closure says so in its
+    ``candidates_message``."""
     from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
     from grasp_apso.search import any_hand_planner
     from grasp_apso.search.any_hand_planner import (ANALYTIC_ROUNDS, BALANCED_CLASS, CLOSURE_CLASS,
@@ -551,6 +552,8 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
                   scene=Scene.table_under(np.asarray(marker.mesh.vertices)))
     assert not any(c.force_closure for c in result.candidates)
     assert result.iterations_run == first + (UNBALANCED_ROUNDS - 1) * second
+    # the reply says so (the CLI and the node's message carry it), with the searches run
+    assert f"no force-closure grasp: {UNBALANCED_ROUNDS} searches found none" in result.candidates_message
 
     classes = []  # the best class after each search that verified grasps
     real = any_hand_planner.best_class
@@ -564,7 +567,7 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     best = result.candidates[0]
     points = np.array([c.position for c in best.contacts])
     normals = np.array([c.normal for c in best.contacts])
-    assert best.force_closure
+    assert best.force_closure and "no force-closure grasp" not in result.candidates_message
     assert robust_epsilon(sphere, points, normals, options.friction, normal_uncertainty(sphere, points),
                           options.friction_edges) > 0.0
 

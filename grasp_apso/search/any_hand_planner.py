@@ -155,10 +155,12 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         rounds = SIMULATED_ROUNDS if shape.long else TURNED_ROUNDS_FROM
     else:
         rounds = max(ANALYTIC_ROUNDS, UNBALANCED_ROUNDS)
-    done, history = 0, []  # iterations of the rounds so far and their progress, numbered on
+    # the iterations of the rounds so far, their progress (numbered on) and the searches run
+    done, history, searches = 0, [], 0
     for round_ in range(rounds):
         if not options.simulate and round_ >= ANALYTIC_ROUNDS and first_class >= BALANCED_CLASS:
             break  # past ANALYTIC_ROUNDS only while no search found balanced robust force closure
+        searches = round_ + 1
         # A later round's progress goes on from the earlier rounds' (iteration, evaluations,
         # elapsed): the progress topic and the result's history count every iteration once.
         shift = _Shift(done, evaluations, time.perf_counter() - t1)
@@ -208,8 +210,16 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             break
     # simulate: a round with a grasp that held, else the first round of the best class;
     # otherwise the grasps of every round, ranked together
+    message = first.candidates_message
+    if not options.simulate and first_class < CLOSURE_CLASS and not first.cancelled:
+        # candidates without force closure, as many as asked for, would not say so: why, and what may help
+        where = " from the free side of the scene" if scene_obj is not None else ""
+        message = (message + "; " if message else "") + (
+            f"no force-closure grasp: {searches} searches found none with hand {hand.name!r} (its fingers may not "
+            f"oppose across this object{where}); another seed, more particles or iterations, or simulate (each "
+            "grasp checked in MuJoCo) may find one")
     return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
-                   planning_time=time.perf_counter() - t1)
+                   planning_time=time.perf_counter() - t1, candidates_message=message)
 
 
 def analytic_iterations(round_: int, iterations: int) -> int:
