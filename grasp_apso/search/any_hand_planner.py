@@ -194,8 +194,9 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
                 break
             # none held: the round of the best class (force closure over none), the earlier
             # of equal ones
-            if first is None or best_class(checked) > first_class:
-                first, first_class = result, best_class(checked)
+            klass = best_class(checked)
+            if first is None or klass > first_class:
+                first, first_class = result, klass
             if all(c.sim_result == SIM_NOT_RUN for c in result.candidates) and (
                     first_class >= BALANCED_CLASS or round_ + 1 >= UNBALANCED_ROUNDS):
                 # The simulation did not run (MuJoCo refused the hand: the reply says why);

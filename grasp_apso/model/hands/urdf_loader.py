@@ -75,7 +75,8 @@ def read_collision_mesh(path: Path, where: str, max_bytes: int, base_dir: Path |
             folders = (base_dir, base_dir / "meshes", base_dir.parent, base_dir.parent / "meshes")
             near = [folder / path.name for folder in folders if (folder / path.name).is_file()]
             if not near:  # elsewhere in the tree of the description's folder's parent (a collision/ beside urdf/)
-                near = [found] if (found := find_in_tree(base_dir.parent, (path.name,))) is not None else []
+                found = find_in_tree(base_dir.parent, (path.name,))
+                near = [found] if found is not None else []
         hint = f" (a file of that name is at {near[0]}: is the URDF's path wrong?)" if near else ""
         named = ""
         if uri is not None and uri.startswith("package://") and base_dir is not None:
