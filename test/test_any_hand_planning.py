@@ -631,5 +631,46 @@ def test_the_analysed_grasps_are_capped_by_groups_of_like_wrists():
     wrist[:40, :3, 3] = rng.normal(0.0, 1e-4, (40, 3))            # 40 copies of one wrist
     wrist[40:, :3, 3] = 0.05 * np.arange(1, 21)[:, None] * np.array([1.0, 0.0, 0.0])  # 20 distinct ones
     options = PlanOptions()
-    rows = _first_groups(list(range(60)), wrist, 8, options)
+    rows, groups = _first_groups(list(range(60)), wrist, 8, options)
     assert rows == list(range(40)) + list(range(40, 47))  # the copies, then 7 other groups' leaders
+    assert groups == 8  # the distinct grasps the reply's message counts
+    assert _first_groups(list(range(40, 43)), wrist, 8, options)[1] == 3  # fewer groups than the cap
+
+
+def test_fewer_grasps_than_asked_for_say_what_became_of_the_others(hands, monkeypatch):
+    """When fewer candidates than ``max_grasps`` come back, the message counts what the
+    searches' selections saw, summed over the searches whose grasps are ranked together:
+    the distinct grasps with two or more contacts, those that failed verification and
+    those left out below the returned ones' class; and the counts add up (the returned,
+    rejected and left-out grasps are distinct grasps the searches found). The Inspire's
+    mug, seed 0: one robust grasp of five asked for, after two searches."""
+    import re
+
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_select import select_any
+
+    selections = []
+
+    def recording(*args, **kwargs):
+        checked, selection = select_any(*args, **kwargs)
+        selections.append(selection)
+        return checked, selection
+
+    monkeypatch.setattr(any_hand_planner, "select_any", recording)
+    obj = _object("mug")
+    result = plan(obj, options=PlanOptions(max_grasps=5), rng=np.random.default_rng(0), hand=hands["inspire"],
+                  scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
+    n = len(result.candidates)
+    assert n < 5
+    found = re.search(r"^(\d+) of 5 grasps: (\d+) searches found (\d+) distinct grasps with two or more contacts "
+                      r"\(wrists the orientation or position gap apart\); of those verified, (\d+) failed \(legality, "
+                      r"contacts, the scene and the approach\)(?:, (\d+) were not \(robust\) force closure next to "
+                      r"ones that are \(left out\))?; ", result.candidates_message)
+    assert found, result.candidates_message
+    returned, searches, distinct, rejected, left_out = (int(g or 0) for g in found.groups())
+    assert (returned, searches) == (n, len(selections))
+    assert distinct == sum(s.counts.distinct for s in selections)
+    assert rejected == sum(s.counts.rejected for s in selections)
+    assert left_out == sum(s.counts.fallback for s in selections)
+    assert distinct >= returned + rejected + left_out
+    assert all(c.force_closure for c in result.candidates)

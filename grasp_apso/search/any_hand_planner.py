@@ -23,6 +23,7 @@ from ..geometry.contact_settings import ContactSettings
 from .archive import LeaderArchive
 from .any_hand_grg import AnyHandGenerator
 from .any_hand_select import best_class, build_result, select_any
+from .selection_report import SelectionCounts, shortfall_message
 from .grg import classify_shape
 from .options import PlanOptions
 from .problem import ARCHIVE_FACTOR, SwarmProblem
@@ -157,6 +158,8 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         rounds = max(ANALYTIC_ROUNDS, UNBALANCED_ROUNDS)
     # the iterations of the rounds so far, their progress (numbered on) and the searches run
     done, history, searches = 0, [], 0
+    counts = SelectionCounts()  # without simulate, over the rounds whose grasps are ranked together
+    note = ""  # the best grasp's note (its selection's)
     for round_ in range(rounds):
         if not options.simulate and round_ >= ANALYTIC_ROUNDS and first_class >= BALANCED_CLASS:
             break  # past ANALYTIC_ROUNDS only while no search found balanced robust force closure
@@ -181,11 +184,18 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
         # ranking takes the best of both), verifying only grasps that can rank above them.
         prior = first_checked if (first is not None and not options.simulate) else ()
         try:
-            checked, message = select_any(model, problem, swarm, archive, options, pose, obj, scene, prior)
+            checked, selection = select_any(model, problem, swarm, archive, options, pose, obj, scene, prior)
         except PlanningError:
             if first is None and (round_ + 1 == rounds or swarm.cancelled):
                 raise
             continue
+        # with simulate a round's result stands alone; otherwise it ranks every round's grasps
+        counts = selection.counts if options.simulate else counts + selection.counts
+        if selection.added == 0:  # a later search without a grasp to add: the earlier result stands
+            first = replace(first, candidates_message=_message(len(checked), options, counts, searches, note))
+            continue
+        note = selection.note
+        message = _message(len(checked), options, counts, 1 if options.simulate else searches, note)
         result = build_result(model, checked, message, swarm, problem, options, pose, shape, preparation, t1, obj,
                               scene, should_stop)
         if options.simulate:
@@ -221,6 +231,12 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             "grasp checked in MuJoCo) may find one")
     return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
                    planning_time=time.perf_counter() - t1, candidates_message=message)
+
+
+def _message(returned: int, options: PlanOptions, counts, searches: int, note: str) -> str:
+    """The reply's candidates message: why fewer than asked for (if so), then the best grasp's note."""
+    message = shortfall_message(returned, options, counts, searches)
+    return (message + "; " if message and note else message) + note
 
 
 def analytic_iterations(round_: int, iterations: int) -> int:

@@ -49,6 +49,7 @@ from .exact_seat import pad_body_distances, pad_body_rows, pad_nearest, seat_fin
 from .exact_touch import TOUCH_GAP, touch_pads
 from .ranking import grasp_quality, rank_order, ranking_class
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
+from .selection_report import Selection, SelectionCounts
 
 __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture", "best_class"]
 
@@ -294,7 +295,7 @@ def opened(hand, q_pre: np.ndarray, fraction: float) -> np.ndarray:
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene,
-               prior: tuple[AnyChecked, ...] = ()) -> tuple[list[AnyChecked], str]:
+               prior: tuple[AnyChecked, ...] = ()) -> tuple[list[AnyChecked], "Selection"]:
     """Verified candidates: valid and (with a scene) clear of it, only the force-closure
     ones when there are any, and of those only the robust ones (robust epsilon > 0) when
     there are any.
@@ -314,7 +315,10 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     join this round's, which must be distinct from them, and only grasps that can rank
     above the prior's best class are verified (their python-fcl checks are most of a
     round's selection time): the balanced ones always, the other force-closure ones only
-    when no prior grasp is force closure, the rest only when none is valid."""
+    when no prior grasp is force closure, the rest only when none is valid.
+
+    Returns the grasps and the :class:`Selection` (what became of this search's distinct
+    grasps: the reply says it when fewer than ``max_grasps`` come back)."""
     pool = [np.clip(swarm.best, model.lower, model.upper)]
     if len(archive):
         pool.extend(archive.x)
@@ -329,8 +333,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     fitness, _ = problem.fitness(decoded)
     order = np.argsort(-fitness, kind="stable")
     contacts = decoded.contact.sum(axis=1)
-    eligible = _first_groups([i for i in order if contacts[i] >= 2], decoded.wrist, ANALYSED * options.max_grasps,
-                             options)
+    eligible, n_groups = _first_groups([i for i in order if contacts[i] >= 2], decoded.wrist,
+                                       ANALYSED * options.max_grasps, options)
     if not eligible:  # nothing with two contacts: the fittest, to report why
         eligible = [int(order[0])]
     # the grasps whose pads lie on the surface first (stable: by fitness within), so that
@@ -402,8 +406,8 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
         if distinct(c.decoded):
             verify(c)
     if prior:
-        if not kept:
-            raise PlanningError("no grasp beyond the earlier round's", "scene")
+        if not kept:  # nothing to add: the earlier rounds' grasps as they were
+            return list(prior), Selection(SelectionCounts(n_groups, rejected), added=0)
         kept = list(prior) + kept
     if not kept:
         if scene is not None or first is None:
@@ -411,7 +415,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
                 f"scene: no collision-free grasp: none of the {len(x)} best distinct grasps the search found with "
                 f"hand {model.hand.name!r} is valid and keeps the clearance ({options.clearance * 1000:.1f} mm) "
                 "from the support planes and obstacles at the grasp and along the approach", "scene")
-        kept = [first]
+        kept, rejected = [first], rejected - 1  # returned, not valid: it says so itself
     fallback: list[AnyChecked] = []
     if any(c.force_closure for c in kept):
         # Grasps without force closure are not returned next to ones with it: measured on the
@@ -425,22 +429,14 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
         # others 2 of 24, 3 of 13, 0 of 10.
         fallback = [c for c in kept if not c.robust_closure] + fallback
         kept = [c for c in kept if c.robust_closure]
-    dropped = len(fallback)
-    message = ""
-    if len(kept) < options.max_grasps:
-        message = (f"{len(kept)} of {options.max_grasps} grasps: the search kept {len(archive)} distinct leaders, "
-                   f"{rejected} failed verification (legality, contacts, the scene and the approach)"
-                   + (f", {dropped} without (robust) force closure "
-                      + ("simulated last" if options.simulate else "left out") if dropped else ""))
+    selection = Selection(SelectionCounts(n_groups, rejected, len(fallback)), kept[0].note)
     if options.simulate:
         # With the simulation they are its last resort: simulated after the others, and
         # returned only when one of them holds and none of the others does (_simulate).
         for c in fallback:
             c.fallback = True
         kept = kept + fallback
-    if kept[0].note:
-        message = (message + "; " if message else "") + kept[0].note
-    return kept, message
+    return kept, selection
 
 
 def best_class(checked) -> int:
@@ -451,18 +447,19 @@ def best_class(checked) -> int:
                              np.array([c.balanced for c in checked])).max())
 
 
-def _first_groups(rows: list[int], wrist: np.ndarray, groups: int, options) -> list[int]:
+def _first_groups(rows: list[int], wrist: np.ndarray, groups: int, options) -> tuple[list[int], int]:
     """The rows (in their order) of the first ``groups`` groups of like wrists
-    (:func:`grasp_apso.search.archive.wrist_groups`): the grasps the selection may analyse.
+    (:func:`grasp_apso.search.archive.wrist_groups`): the grasps the selection may analyse;
+    and how many groups they form.
     Capped by rows instead, a swarm converged on one grasp filled the cap with near copies
     of it (which the selection skips once it is kept) and left its archive's other leaders
     out: measured on the Allegro-like hand's sphere, seeds 0 and 1, one grasp returned where
     the archive held 20 distinct ones, and a second search run."""
     if not rows:
-        return []
+        return [], 0
     group, _ = wrist_groups(wrist[rows, :3, :3], wrist[rows, :3, 3], options.min_orientation_gap,
                             options.min_position_gap)
-    return [r for r, g in zip(rows, group) if g < groups]
+    return [r for r, g in zip(rows, group) if g < groups], min(groups, int(group.max()) + 1)
 
 
 def hold_score(checked: list[AnyChecked]) -> np.ndarray:
