@@ -591,22 +591,24 @@ def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
     monkeypatch.setattr(any_hand_planner, "select_any", recording)
     obj = builtin("sphere")
     options = PlanOptions(max_grasps=5)
+
+    def rank_class(c):
+        return 3 if c.balanced else 2 if c.force_closure else int(c.valid)
+
     # The first seeds (bounded) until a plan's first search has no balanced robust
-    # force-closure grasp of the sphere, so that a second search runs (seed 6 of 0-7 with
-    # the Allegro-like hand): most first searches find one.
+    # force-closure grasp of the sphere, so that a second search runs for that (seed 6 of
+    # 0-7 with the Allegro-like hand): most first searches find one (a second search that
+    # adds more of them: test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for).
     for seed in range(SECOND_SEARCH_SEEDS):
         calls.clear()
         result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["allegro"],
                       scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
-        if len(calls) == 2:
+        if len(calls) == 2 and max(rank_class(c) for c in calls[0][1]) < 3:
             break
     assert len(calls) == 2, "no plan searched twice"
     (first_prior, first), (prior, union) = calls
     assert first_prior == ()
     assert [id(c) for c in prior] == [id(c) for c in first]
-
-    def rank_class(c):
-        return 3 if c.balanced else 2 if c.force_closure else int(c.valid)
 
     new = [c for c in union if all(c is not p for p in prior)]
     assert new, "the second search found grasps above the first's"
@@ -674,3 +676,47 @@ def test_fewer_grasps_than_asked_for_say_what_became_of_the_others(hands, monkey
     assert left_out == sum(s.counts.fallback for s in selections)
     assert distinct >= returned + rejected + left_out
     assert all(c.force_closure for c in result.candidates)
+
+
+def test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for(hands, monkeypatch):
+    """Without ``simulate`` a plan whose first search verified some balanced robust
+    force-closure grasps, but fewer than ``max_grasps``, searches a second time and no
+    more; the second search verifies only balanced grasps (the first's best class), and
+    the plan returns more of them than the first search had. A first search with
+    ``max_grasps`` balanced grasps is the only one."""
+    from grasp_apso.search import any_hand_planner
+    from grasp_apso.search.any_hand_select import select_any
+
+    calls = []
+
+    def recording(*args, **kwargs):
+        checked, selection = select_any(*args, **kwargs)
+        calls.append(list(checked))
+        return checked, selection
+
+    monkeypatch.setattr(any_hand_planner, "select_any", recording)
+    options = PlanOptions(max_grasps=5)
+    seen = set()
+    # bounded: until both kinds of plan were seen (the mug's seed 1: 1 balanced grasp, then
+    # 3; the cube's seed 0: 5 in the first search)
+    for name, seed in [(name, seed) for seed in range(SECOND_SEARCH_SEEDS) for name in ("mug", "cube")]:
+        obj = _object(name)
+        calls.clear()
+        result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["inspire"],
+                      scene=Scene.table_under(np.asarray(obj.mesh.vertices)))
+        balanced = [sum(c.balanced for c in checked) for checked in calls]
+        if balanced[0] >= options.max_grasps:
+            assert len(calls) == 1
+            seen.add("enough")
+        elif balanced[0] > 0:
+            assert len(calls) == 2, balanced  # one more search, not the four of a plan without any
+            first_ids = {id(c) for c in calls[0]}
+            new = [c for c in calls[1] if id(c) not in first_ids]
+            assert all(c.balanced for c in new)
+            assert len(result.candidates) == min(options.max_grasps, len(calls[1]))
+            if new:
+                assert len(result.candidates) > min(options.max_grasps, balanced[0])
+                seen.add("more")
+        if {"enough", "more"} <= seen:
+            break
+    assert {"enough", "more"} <= seen, seen
