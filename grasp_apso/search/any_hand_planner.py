@@ -74,11 +74,13 @@ TURNED_ROUNDS_FROM = 6
 #: only: thin objects lying flat, the bowl's rim). The second search also runs when the
 #: first found some balanced grasps but fewer than asked for (2026-12-07, third): a client
 #: asking for five got five in 16 of LEAP's 63 plans and 31 of the Shadow's (dex-urdf),
-#: 37 and 47 now (``bench/held_rate.py --seeds 3 --dexgraspbench``), the candidates held
-#: with DexGraspBench's parameters 168 / 200 -> 211 / 248 and 209 / 233 -> 255 / 278, the
-#: best grasps held as before (53 and 57 of 63); the median plan 0.7 -> 1.2 s and 0.5 ->
-#: 0.8 s. Searching on to four times for them gave 45 and 55 plans of five, LEAP's median
-#: plan 2.7 times as long (``bench/bench_any_hand.py``).
+#: 36 and 45 now (``bench/held_rate.py --seeds 3 --dexgraspbench``; 13 hands: 564 -> 642 of
+#: 819), the candidates held with DexGraspBench's parameters 168 / 200 -> 208 / 245 and
+#: 209 / 233 -> 249 / 273, the best grasps held as before (53 and 57 of 63; 13 hands 662 ->
+#: 664); LEAP's median plan 2.0x -> 3.3x the paper hand's, the test hands' 1.5-1.6x
+#: (``bench/bench_any_hand.py``). Searching on to four times for them gave 45 and 55 plans
+#: of five, the best grasps as now, LEAP's median plan 5.6x (docs/any-hand-measurements.md,
+#: "The stop of 2026-12-07, third").
 ANALYTIC_ROUNDS = 2
 #: ... and up to this many while none of the rounds' verified grasps is balanced robust force
 #: closure (a later round verifies only grasps above the earlier rounds' best class, so
