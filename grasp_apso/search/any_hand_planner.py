@@ -200,7 +200,7 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
             continue
         # with simulate a round's result stands alone; otherwise it ranks every round's grasps
         counts = selection.counts if options.simulate else counts + selection.counts
-        if selection.added == 0:  # a later search without a grasp to add: the earlier result stands
+        if selection.unchanged:  # a later search without a grasp to add: the earlier result stands
             first = replace(first, candidates_message=_message(len(checked), options, counts, searches, note))
             continue
         note = selection.note

@@ -295,7 +295,7 @@ def opened(hand, q_pre: np.ndarray, fraction: float) -> np.ndarray:
 
 
 def select_any(model, problem, swarm, archive, options, pose, obj, scene,
-               prior: tuple[AnyChecked, ...] = ()) -> tuple[list[AnyChecked], "Selection"]:
+               prior: tuple[AnyChecked, ...] = ()) -> tuple[list[AnyChecked], Selection]:
     """Verified candidates: valid and (with a scene) clear of it, only the force-closure
     ones when there are any, and of those only the robust ones (robust epsilon > 0) when
     there are any.
@@ -407,7 +407,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
             verify(c)
     if prior:
         if not kept:  # nothing to add: the earlier rounds' grasps as they were
-            return list(prior), Selection(SelectionCounts(n_groups, rejected), added=0)
+            return list(prior), Selection(SelectionCounts(n_groups, rejected), unchanged=True)
         kept = list(prior) + kept
     if not kept:
         if scene is not None or first is None:

@@ -34,7 +34,7 @@ class Selection:
 
     counts: SelectionCounts
     note: str = ""
-    added: int = -1  # with earlier rounds' grasps: 0 when this search added none (-1: not counted)
+    unchanged: bool = False  # a later search that added no grasp: the earlier ones stand as they were
 
 
 def shortfall_message(returned: int, options, counts: SelectionCounts, searches: int) -> str:
