@@ -121,6 +121,7 @@ def test_candidate_table_and_pictures_speak_of_the_hands_own_fingers(allegro, tm
     with those names, not run together as initials ("3711"); the paper hand keeps its
     initials; the side view of any other hand does not speak of a little finger."""
     from grasp_apso.presentation import summary
+    from grasp_apso.search.result import PAPER_HAND_NAME
 
     hand = load_any_hand(allegro, spheres=False)
     result = _general_result(hand, builtin.builtin("cube"))
@@ -134,6 +135,13 @@ def test_candidate_table_and_pictures_speak_of_the_hands_own_fingers(allegro, tm
         label = ",".join(x.finger for x in cand.contacts)
         assert row.split()[4:6] == [str(cand.n_contacts), label], row
         assert "".join(x.finger for x in cand.contacts) not in row.split()
+    # Another hand whose touching fingers are called like the paper hand's (the Allegro-like
+    # hand's index, middle, ring, thumb; an Inspire's when its pinky does not touch): its
+    # table still names them (the hand decides, not which fingers touch in this plan).
+    own = summary.format_candidates(dataclasses.replace(result, hand_name=hand.name)).splitlines()
+    assert "fingers touching" in own[0]
+    assert own[2].split()[5] == ",".join(x.finger for x in result.candidates[0].contacts)
+    assert result.hand_name == PAPER_HAND_NAME  # built from a paper-hand plan
     paper = summary.format_candidates(result).splitlines()
     assert "L R M I T = little ring middle index thumb" in paper[0]
     initials = {"little": "L", "ring": "R", "middle": "M", "index": "I", "thumb": "T"}

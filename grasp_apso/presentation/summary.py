@@ -20,7 +20,7 @@ import numpy as np
 
 from ..model import poses
 from ..model.hand import FINGER_NAMES, JOINT_KINDS
-from ..search.result import SIM_DROPPED, SIM_HELD, GraspCandidate, GraspResult
+from ..search.result import PAPER_HAND_NAME, SIM_DROPPED, SIM_HELD, GraspCandidate, GraspResult
 
 __all__ = [
     "FCL_TOLERANCE_MM", "COMPARE_AT", "LINK_NAMES", "touching_links", "why_not_valid", "grasp_summary",
@@ -284,16 +284,21 @@ def _pose_and_rest(result: GraspResult, friction: float, pose_note: str, up: np.
     return lines
 
 
-def _paper_fingers(cands) -> bool:
-    """Every contact made by one of the paper hand's five fingers (initials are then enough)."""
-    return all(x.finger in _INITIAL for c in cands for x in c.contacts)
+def _paper_fingers(result: GraspResult) -> bool:
+    """The paper hand (its own path or its URDF), every contact by one of its five fingers:
+    initials are then enough. Decided by the hand, not by which fingers touch in this plan,
+    so that one hand's tables read alike in every plan (an Inspire plan whose pinky did not
+    touch was printed with the paper hand's initials)."""
+    return result.hand_name == PAPER_HAND_NAME and all(
+        x.finger in _INITIAL for c in result.candidates for x in c.contacts)
 
 
-def _contact_labels(cands) -> list[str]:
+def _contact_labels(result: GraspResult) -> list[str]:
     """The contacts column: the count, then the paper hand's initials (``3 MIT``) or, for any
     other hand, its own finger names (``3 thumb,index,middle``; names like ``3``, ``7``
     would run together as initials)."""
-    if _paper_fingers(cands):
+    cands = result.candidates
+    if _paper_fingers(result):
         return [f"{c.n_contacts} " + "".join(_INITIAL[x.finger] for x in c.contacts) for c in cands]
     return [f"{c.n_contacts} " + ",".join(x.finger for x in c.contacts) for c in cands]
 
@@ -304,7 +309,7 @@ def format_candidates(result: GraspResult) -> str:
     cands = result.candidates
     simulated = any(c.sim_result != -1 for c in cands)
     scene = any(math.isfinite(c.scene_distance) for c in cands)
-    labels = _contact_labels(cands)
+    labels = _contact_labels(result)
     width = max([10] + [len(x) for x in labels])
     head = (f"  {'rank':>4} {'quality':>7} {'epsilon':>8} {'FC':>3} {'contacts':<{width}} "
             f"{'wrist position (mm)':>24}  {'approach (unit)':>22}")
@@ -312,7 +317,7 @@ def format_candidates(result: GraspResult) -> str:
         head += f" {'scene mm':>8}"
     if simulated:
         head += f"  {'simulation':<13} {'shift mm':>8} {'turn deg':>8}"
-    legend = ("contacts L R M I T = little ring middle index thumb" if _paper_fingers(cands)
+    legend = ("contacts L R M I T = little ring middle index thumb" if _paper_fingers(result)
               else "contacts: how many, then the fingers touching")
     lines = [f"Candidates: {len(cands)}, best first (quality = ranking score in [0, 1]; {legend}):", head]
     for c, label in zip(cands, labels):

@@ -18,10 +18,12 @@ from ..geometry.collision import FclReport
 from ..model.hand import FINGER_NAMES
 from .swarm import IterationStats
 
-__all__ = ["Contact", "GraspCandidate", "GraspResult", "SIM_NOT_RUN", "SIM_DROPPED", "SIM_HELD"]
+__all__ = ["Contact", "GraspCandidate", "GraspResult", "SIM_NOT_RUN", "SIM_DROPPED", "SIM_HELD", "PAPER_HAND_NAME"]
 
 #: ``GraspCandidate.sim_result`` values (``grasp_apso_interfaces/Grasp.sim_result``).
 SIM_NOT_RUN, SIM_DROPPED, SIM_HELD = -1, 0, 1
+#: The paper hand's name in a result (its own path; its URDF's robot name is the same).
+PAPER_HAND_NAME = "apso_paper_hand"
 
 
 @dataclass(frozen=True)
@@ -142,7 +144,7 @@ class GraspResult:
     #: Why fewer than ``max_grasps`` candidates came back ("" when all did).
     candidates_message: str = ""
     #: The hand planned with and the sha256 of its description (and config).
-    hand_name: str = "apso_paper_hand"
+    hand_name: str = PAPER_HAND_NAME
     hand_hash: str = ""
 
     @property
