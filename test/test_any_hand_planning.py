@@ -720,3 +720,34 @@ def test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for(hands, 
         if {"enough", "more"} <= seen:
             break
     assert {"enough", "more"} <= seen, seen
+
+
+def test_a_plan_whose_force_closure_is_not_robust_says_so(hands):
+    """A plan whose best grasps are force closure only without the normals' spread (robust
+    epsilon 0: contacts on the bowl's rim) says so in its message, with how such grasps
+    held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 0."""
+    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
+    from grasp_apso.search.any_hand_planner import FRAGILE_HELD, UNBALANCED_ROUNDS
+
+    options = PlanOptions(particles=30, iterations=20, max_grasps=2)
+    bowl = _object("bowl")
+    result = plan(bowl, options=options, rng=np.random.default_rng(0), hand=hands["shadow"],
+                  scene=Scene.table_under(np.asarray(bowl.mesh.vertices)))
+    best = result.candidates[0]
+    assert best.force_closure
+    points = np.array([c.position for c in best.contacts])
+    normals = np.array([c.normal for c in best.contacts])
+    assert robust_epsilon(bowl, points, normals, options.friction, normal_uncertainty(bowl, points),
+                          options.friction_edges) == 0.0  # independent: recomputed from the reply's contacts
+    assert (f"no robust force-closure grasp: {UNBALANCED_ROUNDS} searches found force closure only"
+            in result.candidates_message)
+    assert FRAGILE_HELD in result.candidates_message
+    cube = builtin("cube")
+    result = plan(cube, options=options, rng=np.random.default_rng(0), hand=hands["shadow"],
+                  scene=Scene.table_under(np.asarray(cube.mesh.vertices)))
+    best = result.candidates[0]
+    points = np.array([c.position for c in best.contacts])
+    normals = np.array([c.normal for c in best.contacts])
+    assert robust_epsilon(cube, points, normals, options.friction, normal_uncertainty(cube, points),
+                          options.friction_edges) > 0.0
+    assert "robust force-closure" not in result.candidates_message
