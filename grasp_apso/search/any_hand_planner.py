@@ -23,7 +23,7 @@ from ..geometry.contact_settings import ContactSettings
 from .archive import LeaderArchive
 from .any_hand_grg import AnyHandGenerator
 from .any_hand_select import best_class, build_result, select_any
-from .selection_report import SelectionCounts, shortfall_message
+from .selection_report import SelectionCounts, append_note, shortfall_message
 from .grg import classify_shape
 from .options import PlanOptions
 from .problem import ARCHIVE_FACTOR, SwarmProblem
@@ -239,24 +239,23 @@ def plan_any_hand(obj, pose: np.ndarray, options: PlanOptions, rng: np.random.Ge
     if not options.simulate and first_class < CLOSURE_CLASS and not first.cancelled:
         # candidates without force closure, as many as asked for, would not say so: why, and what may help
         where = " from the free side of the scene" if scene_obj is not None else ""
-        message = (message + "; " if message else "") + (
+        message = append_note(message, (
             f"no force-closure grasp: {searches} searches found none with hand {hand.name!r} (its fingers may not "
             f"oppose across this object{where}); another seed, more particles or iterations, or simulate (each "
-            "grasp checked in MuJoCo) may find one")
+            "grasp checked in MuJoCo) may find one"))
     elif not options.simulate and not first.cancelled and not any(c.robust_closure for c in first_checked):
         # force closure only where the normals' spread undoes it: such best grasps seldom hold
-        message = (message + "; " if message else "") + (
+        message = append_note(message, (
             f"no robust force-closure grasp: {searches} searches found force closure only with contacts where the "
             f"surface normals' spread (an edge, a rim, a thin wall) undoes it (robust epsilon 0: {FRAGILE_HELD}); "
-            "another seed, more particles or iterations, or simulate may find a firmer one")
+            "another seed, more particles or iterations, or simulate may find a firmer one"))
     return replace(first, evaluations=evaluations, iterations_run=done, history=tuple(history),
                    planning_time=time.perf_counter() - t1, candidates_message=message)
 
 
 def _message(returned: int, options: PlanOptions, counts, searches: int, note: str) -> str:
     """The reply's candidates message: why fewer than asked for (if so), then the best grasp's note."""
-    message = shortfall_message(returned, options, counts, searches)
-    return (message + "; " if message and note else message) + note
+    return append_note(shortfall_message(returned, options, counts, searches), note)
 
 
 def analytic_iterations(round_: int, iterations: int) -> int:

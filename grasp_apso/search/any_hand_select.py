@@ -49,7 +49,7 @@ from .exact_seat import pad_body_distances, pad_body_rows, pad_nearest, seat_fin
 from .exact_touch import TOUCH_GAP, touch_pads
 from .ranking import grasp_quality, rank_order, ranking_class
 from .result import SIM_DROPPED, SIM_HELD, SIM_NOT_RUN, Contact, GraspCandidate, GraspResult
-from .selection_report import Selection, SelectionCounts
+from .selection_report import Selection, SelectionCounts, append_note
 
 __all__ = ["AnyChecked", "select_any", "build_result", "squeeze_posture", "best_class"]
 
@@ -551,8 +551,7 @@ def build_result(model, checked, message, swarm, problem, options, pose, shape, 
     sims = None
     if options.simulate:
         checked, sims, note = _simulate(model, checked, pose, obj, scene, options, should_stop)
-        if note:
-            message = (message + "; " if message else "") + note
+        message = append_note(message, note)
     held = None if sims is None else np.array([s is not None and s.held for s in sims])
     quality = grasp_quality(hold_score(checked), np.array([c.valid for c in checked]),
                             np.array([c.force_closure for c in checked]), held,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Selection", "SelectionCounts", "shortfall_message"]
+__all__ = ["Selection", "SelectionCounts", "shortfall_message", "append_note"]
 
 
 @dataclass(frozen=True)
@@ -52,3 +52,8 @@ def shortfall_message(returned: int, options, counts: SelectionCounts, searches:
             f"{counts.rejected} failed (legality, contacts, the scene and the approach){fallback}; the others lie "
             "near a verified one or rank lower (no force closure, not robust or not balanced); more particles or "
             "iterations find more")
+
+
+def append_note(message: str, note: str) -> str:
+    """``message`` and ``note`` joined by "; " (either may be empty)."""
+    return f"{message}; {note}" if message and note else message or note
