@@ -134,6 +134,30 @@ def test_a_thumb_joint_that_moves_another_finger_is_drawn_as_the_thumbs(tmp_path
     assert q.min() < low + 0.05 * (high - low) and q.max() > high - 0.05 * (high - low)
 
 
+
+def test_a_preshape_joint_that_swings_its_finger_around_the_palm_is_drawn_anywhere(tmp_path):
+    """A non-thumb pre-shape joint wider than ``WIDE_PRESHAPE`` (the Barrett hand's spread
+    swings a finger 180 degrees around the palm, from across the thumb to beside it) sets the
+    grasp's type: drawn anywhere in its range, not within ``SPREAD_FRACTION`` of it either side
+    of its open value as a finger's abduction is (the Barrett's fingers then met a 5 cm sphere
+    with two fingers only). The other fingers' abduction stays near its open value."""
+    path = write_allegro_like(tmp_path, "none")
+    text = path.read_text()
+    start = text.index('<joint name="index_joint_0"')
+    end = text.index("</joint>", start)
+    wide = text[start:end].replace('lower="-0.47" upper="0.47"', 'lower="0.0" upper="3.1"')
+    assert wide != text[start:end]
+    path.write_text(text[:start] + wide + text[end:])
+    hand = load_hand(path)
+    model = prepare_any_hand(builtin("cube"), hand, PlanOptions())
+    spread_joints = _draws(model.tables, tuple(f.is_thumb for f in hand.fingers))[1]
+    j, k = hand.actuated_joints.index("index_joint_0"), hand.actuated_joints.index("middle_joint_0")
+    assert j not in spread_joints and k in spread_joints
+    q = any_hand_grg._preshape(model, 2000, np.random.default_rng(0), 0.5)
+    assert q[:, j].min() < 0.05 * 3.1 and q[:, j].max() > 0.95 * 3.1  # anywhere in [0, 3.1]
+    assert np.abs(q[:, k]).max() <= any_hand_grg.SPREAD_FRACTION * 0.94 + 1e-9  # near its open value, 0
+
+
 def _same(a, b, skip: tuple[str, ...] = ()) -> None:
     for name in a.__dataclass_fields__:
         if name not in skip:
