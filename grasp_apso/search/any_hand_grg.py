@@ -68,7 +68,7 @@ CLAW_OPEN_PAST = 0.5
 #: range either side of the open value (the thumb's: anywhere, for opposition).
 SPREAD_FRACTION = 0.15
 #: ... unless the joint turns its finger farther than this (rad): no finger's abduction
-#: spans more than about 120 degrees (LEAP's 2.09 rad, the widest of the hands at hand); a
+#: spans more than about 120 degrees (LEAP's 2.09 rad, the widest of the 13 hands measured); a
 #: wider pre-shape joint swings its finger around the palm (the Barrett hand's spread, 180
 #: degrees) and sets the grasp's type, as a claw's knuckle does: drawn anywhere in range.
 #: Measured on dex-urdf's Barrett (``bench/held_rate.py --seeds 3 --dexgraspbench --hand
