@@ -134,7 +134,6 @@ def test_a_thumb_joint_that_moves_another_finger_is_drawn_as_the_thumbs(tmp_path
     assert q.min() < low + 0.05 * (high - low) and q.max() > high - 0.05 * (high - low)
 
 
-
 def test_a_preshape_joint_that_swings_its_finger_around_the_palm_is_drawn_anywhere(tmp_path):
     """A non-thumb pre-shape joint wider than ``WIDE_PRESHAPE`` (the Barrett hand's spread
     swings a finger 180 degrees around the palm, from across the thumb to beside it) sets the

@@ -6,9 +6,9 @@ which also turns them to the free side of support planes), standoffs in the hand
 open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closing sense; a
 claw's from past its open posture where it can bend back, :data:`CLAW_OPEN_PAST`),
 the thumb's and a claw's pre-shape joints anywhere in their range (the thumb's also where
-they move another finger too), and so any pre-shape joint wider than :data:`WIDE_PRESHAPE`
-(the Barrett hand's spread), the other fingers' abduction near its open value. A particle is kept
-when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
+they move another finger too), as is any pre-shape joint wider than :data:`WIDE_PRESHAPE`
+(the Barrett hand's spread); the other fingers' abduction near its open value. A particle is
+kept when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
 more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
 The swarm asks for a few particles per iteration, each call a batch of a dozen draws or
@@ -78,7 +78,8 @@ SPREAD_FRACTION = 0.15
 #: anywhere, 3 % did. Best grasps held 37 -> 47 in our check and 45 -> 56 with
 #: DexGraspBench's parameters (in ours the sphere 0 -> 2 of 3, the orange and the baseball
 #: 0 -> 3, the cup 0 -> 2, the screwdriver 0 -> 2, the barrel 2 -> 0), median plan 1.3 ->
-#: 0.9 s. The other hands at hand have no pre-shape joint this wide: their plans are unchanged.
+#: 0.9 s. The other 12 hands measured have no pre-shape joint this wide: their plans are
+#: unchanged.
 WIDE_PRESHAPE = 2.5
 #: Rounds of regenerating illegal fingers (each more open by REGENERATE_FACTOR) and fingers
 #: without a pad contact (another pre-shape).
@@ -118,7 +119,8 @@ def _draws(tables, thumbs: tuple[bool, ...]) -> tuple[np.ndarray, ...]:
                 # abduction near its open value: spread fingers collide. A claw's fingers stand
                 # apart around its palm, and its pre-shape joints set the grasp's type (the
                 # Schunk SDH's knuckle turns two fingers from facing the thumb to a triangle):
-                # anywhere in their range, as the thumb's.
+                # anywhere in their range, as the thumb's; so is a joint that swings its
+                # finger around the palm (WIDE_PRESHAPE).
                 if j not in thumb_joints and not t.closes_ahead and hi[j] - lo[j] <= WIDE_PRESHAPE:
                     spread.append(row)
                     spread_j.append(j)
