@@ -63,6 +63,17 @@ def hands(tmp_path_factory):
     }
 
 
+def _reply_robust_epsilon(obj, cand, options) -> float:
+    """The robust epsilon of a candidate's contacts as the reply gives them (positions and
+    normals), recomputed independently of the planner's own value."""
+    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
+
+    points = np.array([c.position for c in cand.contacts])
+    normals = np.array([c.normal for c in cand.contacts])
+    return robust_epsilon(obj, points, normals, options.friction, normal_uncertainty(obj, points),
+                          options.friction_edges)
+
+
 def _object(name: str):
     """A built-in object, or a shipped mesh by name."""
     mesh = ROOT / "grasp_apso" / "data" / "meshes" / f"{name}.stl"
@@ -539,7 +550,6 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     third time, finds a balanced grasp and stops there (up to 2026-12-07 it stopped after
     two searches with the unbalanced grasp). A plan without force closure says so in its
     ``candidates_message``."""
-    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
     from grasp_apso.search import any_hand_planner
     from grasp_apso.search.any_hand_planner import (ANALYTIC_ROUNDS, BALANCED_CLASS, CLOSURE_CLASS,
                                                     UNBALANCED_ROUNDS, analytic_iterations)
@@ -565,11 +575,8 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     assert classes == [CLOSURE_CLASS, BALANCED_CLASS]
     assert result.iterations_run == first + 2 * second
     best = result.candidates[0]
-    points = np.array([c.position for c in best.contacts])
-    normals = np.array([c.normal for c in best.contacts])
     assert best.force_closure and "no force-closure grasp" not in result.candidates_message
-    assert robust_epsilon(sphere, points, normals, options.friction, normal_uncertainty(sphere, points),
-                          options.friction_edges) > 0.0
+    assert _reply_robust_epsilon(sphere, best, options) > 0.0
 
 
 def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
@@ -726,7 +733,6 @@ def test_a_plan_whose_force_closure_is_not_robust_says_so(hands):
     """A plan whose best grasps are force closure only without the normals' spread (robust
     epsilon 0: contacts on the bowl's rim) says so in its message, with how such grasps
     held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 0."""
-    from grasp_apso.quality.robustness import normal_uncertainty, robust_epsilon
     from grasp_apso.search.any_hand_planner import FRAGILE_HELD, UNBALANCED_ROUNDS
 
     options = PlanOptions(particles=30, iterations=20, max_grasps=2)
@@ -735,19 +741,12 @@ def test_a_plan_whose_force_closure_is_not_robust_says_so(hands):
                   scene=Scene.table_under(np.asarray(bowl.mesh.vertices)))
     best = result.candidates[0]
     assert best.force_closure
-    points = np.array([c.position for c in best.contacts])
-    normals = np.array([c.normal for c in best.contacts])
-    assert robust_epsilon(bowl, points, normals, options.friction, normal_uncertainty(bowl, points),
-                          options.friction_edges) == 0.0  # independent: recomputed from the reply's contacts
+    assert _reply_robust_epsilon(bowl, best, options) == 0.0  # independent: from the reply's contacts
     assert (f"no robust force-closure grasp: {UNBALANCED_ROUNDS} searches found force closure only"
             in result.candidates_message)
     assert FRAGILE_HELD in result.candidates_message
     cube = builtin("cube")
     result = plan(cube, options=options, rng=np.random.default_rng(0), hand=hands["shadow"],
                   scene=Scene.table_under(np.asarray(cube.mesh.vertices)))
-    best = result.candidates[0]
-    points = np.array([c.position for c in best.contacts])
-    normals = np.array([c.normal for c in best.contacts])
-    assert robust_epsilon(cube, points, normals, options.friction, normal_uncertainty(cube, points),
-                          options.friction_edges) > 0.0
+    assert _reply_robust_epsilon(cube, result.candidates[0], options) > 0.0
     assert "robust force-closure" not in result.candidates_message
