@@ -38,7 +38,12 @@ def sampled():
     model = make_any_hand_model(hand, apple)
     rng = np.random.default_rng(3)
     t = model.tables
-    x = rng.uniform(t.lower, t.upper, size=(160, len(t.lower)))
+    lay = model.layout
+    x = np.empty((160, lay.dims))
+    x[:, :lay.shift.start] = rng.uniform(t.lower[:lay.shift.start], t.upper[:lay.shift.start], (160, lay.shift.start))
+    # the grasp centre shifted within a quarter of its bounds: the hand still over the apple
+    # in most draws, so both clear and deep approaches are sampled
+    x[:, lay.shift] = 0.25 * rng.uniform(t.lower[lay.shift], t.upper[lay.shift], (160, 2))
     root = root_poses(model, x)
     q_open = np.clip(x[:, model.layout.joints], hand.lower, hand.upper)
     margins = object_approach_margins(model, root[:, :3, :3], root[:, :3, 3], q_open, APPROACH)

@@ -209,3 +209,35 @@ def test_no_valid_draw_names_finger_joints_the_file_leaves_without_limits(setup,
     for joint in ("index_joint_2", "index_joint_3", "thumb_joint_2", "thumb_joint_3"):
         assert joint in why
     assert "closed linkage as free joints" in why
+
+
+def test_the_grasp_centre_shifts_across_the_palm_within_half_the_reach(setup):
+    """The particle's shift moves the grasp centre across the palm (palm x and y), never
+    along its normal and never turning it: the line along the palm normal passes beside the
+    centre of mass by the shift. GRG draws it over its whole range, half the hand's reach
+    (half its longest finger) either way."""
+    from grasp_apso.geometry.any_hand_decoder import root_poses
+    from grasp_apso.geometry.any_hand_tables import SHIFT_FRACTION
+
+    model, shape = setup
+    t, lay = model.tables, model.layout
+    hand = model.hand
+    assert lay.dims == 6 + hand.n_joints and lay.shift == slice(4 + hand.n_joints, 6 + hand.n_joints)
+    # the reach, independently: half the longest finger, its first link's origin to its pad, open
+    poses = hand.link_transforms(hand.open_configuration())
+    reach = 0.5 * max(np.linalg.norm(poses[f.pad_link][:3, :3] @ f.pad_center + poses[f.pad_link][:3, 3]
+                                     - poses[hand.finger_links(f)[0]][:3, 3]) for f in hand.fingers)
+    np.testing.assert_allclose(t.upper[lay.shift], SHIFT_FRACTION * reach, rtol=1e-9)
+    np.testing.assert_allclose(t.lower[lay.shift], -SHIFT_FRACTION * reach, rtol=1e-9)
+    x = AnyHandGenerator(model, shape, np.random.default_rng(5)).draw(200)
+    s = x[:, lay.shift]
+    assert np.all((s >= t.lower[lay.shift]) & (s <= t.upper[lay.shift]))
+    assert np.all(s.min(axis=0) < 0.6 * t.lower[lay.shift]) and np.all(s.max(axis=0) > 0.6 * t.upper[lay.shift])
+    centred = x.copy()
+    centred[:, lay.shift] = 0.0
+    shifted, plain = root_poses(model, x), root_poses(model, centred)
+    np.testing.assert_array_equal(shifted[:, :3, :3], plain[:, :3, :3])
+    move = shifted[:, :3, 3] - plain[:, :3, 3]
+    palm = plain[:, :3, :3] @ t.basis  # (P, 3, 3): palm x, y, z in the object frame
+    np.testing.assert_allclose(np.einsum("pi,pi->p", move, palm[:, :, 2]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("pij,pi->pj", palm[:, :, :2], move), s, atol=1e-12)

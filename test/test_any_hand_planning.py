@@ -42,11 +42,11 @@ SECOND_SEARCH_SEEDS = 10
 FALLBACK_SEEDS = 4
 #: Inspire plans (object, seed; the default swarm, simulate) with a grasp that dropped and
 #: held with the firmer squeeze (bench/held_rate.py --hand inspire --simulate).
-FIRMER_PLANS = (("master_chef_can", 0), ("mustard_bottle", 2), ("banana", 1))
-#: Allegro-like plans of the screwdriver (seeds; the default swarm, simulate) whose grasps
-#: all dropped in two searches and held in a later one (bench/held_rate.py --hand
-#: allegro_like --simulate: searches 3 and 4).
-LATER_SEARCH_SEEDS = (1, 2)
+FIRMER_PLANS = (("mug", 0), ("potted_meat_can", 1), ("gelatin_box", 0))
+#: Allegro-like plans of the screwdriver (seeds; the default swarm, simulate): seed 4's
+#: grasps all dropped in three searches and held in the fourth, seed 5's held in its second
+#: (measured).
+LATER_SEARCH_SEEDS = (4, 5)
 #: m, the median pad gap at a hand's pre-grasps (measured 10-25 mm on the cube and the mug;
 #: the search's wide-open pre-shapes, 40-140 mm).
 NEAR_PRE_GRASP = 0.04
@@ -365,7 +365,7 @@ def test_simulate_without_the_simulation_answers_as_without_it(hands, searches, 
 
 
 def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, searches):
-    """The Shadow's screwdriver lying on a table (seed 3): none of the six searches with the
+    """The Shadow's screwdriver lying on a table (seed 2): none of the six searches with the
     paper's guidance (palm y along the handle, so the thumb opposes along it) found a grasp
     that held; the first search with the guidance turned (the fingers along the handle,
     the thumb's opposition across it) did, and the plan returns only held grasps."""
@@ -374,7 +374,7 @@ def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, sear
 
     obj = _object("phillips_screwdriver")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
-    result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(3),
+    result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(2),
                   hand=hands["shadow"], scene=table)
     assert searches == [False] * TURNED_ROUNDS_FROM + [True]
     assert result.candidates and {c.sim_result for c in result.candidates} == {SIM_HELD}
@@ -527,7 +527,7 @@ def test_a_second_search_goes_on_counting_the_progress(hands):
     assert (first, second) == (7, 5)
     counts = {first + k * second for k in range(UNBALANCED_ROUNDS)}
     rounds = set()
-    for seed in range(4):
+    for seed in range(4, 8):  # iterations_run 22, 12, 12, 22 (measured)
         obj = builtin("barrel")
         seen = []
         result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["inspire"],
@@ -569,7 +569,7 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     real = any_hand_planner.best_class
     monkeypatch.setattr(any_hand_planner, "best_class", lambda checked: classes.append(real(checked)) or classes[-1])
     sphere = builtin("sphere")
-    result = plan(sphere, options=options, rng=np.random.default_rng(0), hand=hands["inspire"],
+    result = plan(sphere, options=options, rng=np.random.default_rng(4), hand=hands["inspire"],
                   scene=Scene.table_under(np.asarray(sphere.mesh.vertices)))
     # force closure, not balanced; the second search found nothing above it; the third a balanced grasp
     assert classes == [CLOSURE_CLASS, BALANCED_CLASS]
@@ -597,15 +597,16 @@ def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
 
     monkeypatch.setattr(any_hand_planner, "select_any", recording)
     obj = builtin("sphere")
-    options = PlanOptions(max_grasps=5)
+    options = PlanOptions(particles=12, iterations=10, max_grasps=5)
 
     def rank_class(c):
         return 3 if c.balanced else 2 if c.force_closure else int(c.valid)
 
     # The first seeds (bounded) until a plan's first search has no balanced robust
-    # force-closure grasp of the sphere, so that a second search runs for that (seed 6 of
-    # 0-7 with the Allegro-like hand): most first searches find one (a second search that
-    # adds more of them: test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for).
+    # force-closure grasp of the sphere, so that a second search runs for that (seed 1 with
+    # the Allegro-like hand and a small swarm; with the default swarm the first search found
+    # one in each of seeds 0-39): most first searches find one (a second search that adds
+    # more of them: test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for).
     for seed in range(SECOND_SEARCH_SEEDS):
         calls.clear()
         result = plan(obj, options=options, rng=np.random.default_rng(seed), hand=hands["allegro"],
@@ -732,12 +733,13 @@ def test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for(hands, 
 def test_a_plan_whose_force_closure_is_not_robust_says_so(hands):
     """A plan whose best grasps are force closure only without the normals' spread (robust
     epsilon 0: contacts on the bowl's rim) says so in its message, with how such grasps
-    held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 0."""
+    held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 11 (in
+    seeds 0-10 its best grasps are not force closure at all)."""
     from grasp_apso.search.any_hand_planner import FRAGILE_HELD, UNBALANCED_ROUNDS
 
     options = PlanOptions(particles=30, iterations=20, max_grasps=2)
     bowl = _object("bowl")
-    result = plan(bowl, options=options, rng=np.random.default_rng(0), hand=hands["shadow"],
+    result = plan(bowl, options=options, rng=np.random.default_rng(11), hand=hands["shadow"],
                   scene=Scene.table_under(np.asarray(bowl.mesh.vertices)))
     best = result.candidates[0]
     assert best.force_closure

@@ -7,7 +7,8 @@ shapes, :func:`grasp_apso.geometry.any_hand_fcl.object_report`, measures; the cl
 what is tested): closed again, that finger's pad link rests on the cube (a fresh exact
 report), no link of it presses in, no other finger moved, and the new contact point lies on
 the cube's surface by trimesh's exact proximity. A finger already on the surface is left as
-it is; one that cannot reach the object is no contact and does not move.
+it is; one that cannot reach the object, or meets it with a link fixed to its pad link while
+the pad link itself stays off, is no contact and does not move.
 """
 
 from __future__ import annotations
@@ -35,10 +36,11 @@ def _contact_mask(hand, cand) -> np.ndarray:
     return np.array([f.name in names for f in hand.fingers])
 
 
-def _opened(hand, hc, cand, cube):
-    """The candidate with its first contacting finger opened until its pad link stands
+def _opened(hand, hc, cand, cube, name: str):
+    """The candidate with its contacting finger ``name`` opened until its pad link stands
     3-8 mm off the cube: (finger index, its joints, q, report)."""
-    finger = hand.finger(cand.contacts[0].finger)
+    assert name in {c.finger for c in cand.contacts}
+    finger = hand.finger(name)
     f = hand.fingers.index(finger)
     joints = [hand.actuated_joints.index(j) for j, s in zip(finger.joints, finger.closing) if s]
     senses = np.array([s for s in finger.closing if s], dtype=float)
@@ -57,7 +59,7 @@ def _opened(hand, hc, cand, cube):
 def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
     hand, cube, grid, cand = grasp
     hc = fcl_api.HandCollision(hand)
-    f, joints, q, report = _opened(hand, hc, cand, cube)
+    f, joints, q, report = _opened(hand, hc, cand, cube, "thumb")
     contact = _contact_mask(hand, cand)
     touched, moved, lost, points = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
     assert moved[f] and not lost.any() and moved.sum() == 1
@@ -77,6 +79,21 @@ def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
     _, distance, _ = trimesh.proximity.closest_point(cube.mesh, points[f][None])
     assert distance[0] <= 0.001
     assert np.isnan(points[np.arange(len(hand.fingers)) != f]).all()
+
+
+def test_a_finger_whose_fixed_tip_meets_the_object_before_its_pad_link_is_no_contact(grasp):
+    # The index of this grasp, opened and closed back along its closing path, meets the
+    # cube with the tip link fixed to its distal (pad) link while the pad link itself stays
+    # 2.02 mm off: beyond the judged 2 mm, so no pad contact, and the finger stays open.
+    hand, cube, grid, cand = grasp
+    hc = fcl_api.HandCollision(hand)
+    f, joints, q, report = _opened(hand, hc, cand, cube, "index")
+    contact = _contact_mask(hand, cand)
+    touched, moved, lost, points = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
+    assert lost[f] and not moved[f] and np.isnan(points[f]).all()
+    np.testing.assert_array_equal(touched[joints], q[joints])
+    again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)
+    assert again.link_distance[hc.links.index(hand.fingers[f].pad_link)] > PAD_TOLERANCE
 
 
 def test_pads_already_on_the_object_are_left_as_they_are(grasp):

@@ -119,9 +119,10 @@ def with_any_scene(model: AnyHandModel, scene, clearance: float, approach_distan
 def root_poses(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | None = None) -> np.ndarray:
     """Root (palm link) poses in the object frame: x (P, D) -> (P, 4, 4).
 
-    The grasp centre (on the palm face, between the pads) is put on the line through the
-    centre of mass along the palm normal, ``clearance + standoff`` in front of the
-    object's support along it; with ``wrist_position`` (3,) the root origin is there.
+    The grasp centre (on the palm face, between the pads) is put on the line along the
+    palm normal through the centre of mass moved by the particle's shift (along palm x and
+    y), ``clearance + standoff`` in front of the object's support along the normal; with
+    ``wrist_position`` (3,) the root origin is there.
     """
     t, lay = model.tables, model.layout
     rot = t.root_rotations(x[:, lay.wrist])
@@ -137,7 +138,8 @@ def root_poses(model: AnyHandModel, x: np.ndarray, wrist_position: np.ndarray | 
                              np.empty(len(x), dtype=np.int64))
     height = model.settings.clearance + x[:, lay.standoff] + support
     center = np.asarray(model.obj.center_of_mass, dtype=float)
-    out[:, :3, 3] = center - height[:, None] * normal - rot @ t.grasp_center
+    across = rot @ (x[:, lay.shift] @ t.basis[:, :2].T)[:, :, None]
+    out[:, :3, 3] = center + across[:, :, 0] - height[:, None] * normal - rot @ t.grasp_center
     return out
 
 

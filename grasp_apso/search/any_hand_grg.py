@@ -7,8 +7,8 @@ open part of its range (:data:`OPEN_FRACTION` from the limit opposite its closin
 claw's from past its open posture where it can bend back, :data:`CLAW_OPEN_PAST`),
 the thumb's and a claw's pre-shape joints anywhere in their range (the thumb's also where
 they move another finger too), as is any pre-shape joint wider than :data:`WIDE_PRESHAPE`
-(the Barrett hand's spread); the other fingers' abduction near its open value. A particle is
-kept when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
+(the Barrett hand's spread); the other fingers' abduction near its open value; the grasp
+centre's shift across the palm uniformly within its bounds. A particle is kept when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
 more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
 The swarm asks for a few particles per iteration, each call a batch of a dozen draws or
@@ -204,6 +204,7 @@ def sample_any(model: AnyHandModel, shape: ShapeClass, n: int, rng: np.random.Ge
     x[:, lay.wrist] = rotation_to_wrist_angles(shape.sample_wrists(n, rng))
     x[:, lay.standoff] = t.upper[lay.standoff] * rng.random(n) ** 1.5
     x[:, lay.joints] = _preshape(model, n, rng, _open_fraction(model))
+    x[:, lay.shift] = rng.uniform(t.lower[lay.shift], t.upper[lay.shift], (n, 2))
     return x
 
 

@@ -58,7 +58,7 @@ def _own_joints(model: AnyHandModel) -> tuple[np.ndarray, np.ndarray, np.ndarray
     """(F, J) int: each finger's own joints (moved by no other finger; -1 padding), (F, J)
     bool: closing joints among them, (F, J) float: their closing limits."""
     t = model.tables
-    users = np.zeros(len(t.lower) - t.layout.joints.start, dtype=int)
+    users = np.zeros(t.layout.n_joints, dtype=int)
     for f in range(t.n_fingers):
         users[t.j_index[f, :t.j_count[f]]] += 1
     rows = []

@@ -18,7 +18,8 @@ body's surface samples read on the object's distance grid (a python-fcl query of
 fingertip per step cost 1.4 s per LEAP plan), then corrected by a few secant steps on the
 whole finger's exact distance where the samples stand off a mesh fingertip's nearest point
 (:func:`_exact_rest`). A
-finger that meets the object first with another link, or not at all within its range, is
+finger that meets the object first with another link, whose pad link itself stays off the
+object while a link fixed to it touches, or that meets nothing within its range, is
 no contact: it stays where it is (the posture the search verified), only its contact is
 dropped.
 """
@@ -142,6 +143,7 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
         joints, limits = _closing_joints(hand, finger)
         parts = np.flatnonzero(hc.shapes.finger[hc.shapes.part_link] == f)
         pad_parts = np.flatnonzero(np.isin(hc.shapes.part_link, body_rows))
+        link_parts = np.flatnonzero(hc.shapes.part_link == pad_row)
         base = out.copy()
 
         def at(t: float) -> np.ndarray:
@@ -176,6 +178,9 @@ def touch_pads(hc, hand, q: np.ndarray, root: np.ndarray, obj, grid, report, con
             hi, d, part = _exact_rest(lambda t: finger_distance(hc, at(t), root, shape, parts), hi, speed, SEAT_DEPTH)
             # resting on the pad, no deeper than a seated finger; another link nearer is no pad contact
             found = -SEAT_DEPTH <= d <= TOUCH_GAP and part in pad_parts
+            if found and hc.shapes.part_link[part] != pad_row:
+                # a link fixed to the pad link touches: the pad link itself must rest within the gap too
+                found = finger_distance(hc, at(hi), root, shape, link_parts)[0] <= TOUCH_GAP
         if found:
             out = at(hi)
             moved[f] = True
