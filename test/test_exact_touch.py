@@ -56,12 +56,19 @@ def _opened(hand, hc, cand, cube, name: str):
     return f, joints, q, report
 
 
-def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
+def _reclosed(grasp, name: str):
+    """The contacting finger ``name`` opened (:func:`_opened`), then ``touch_pads`` on the
+    grasp: (hc, finger index, its joints, the opened q, touch_pads' (q, moved, lost, points))."""
     hand, cube, grid, cand = grasp
     hc = fcl_api.HandCollision(hand)
-    f, joints, q, report = _opened(hand, hc, cand, cube, "thumb")
-    contact = _contact_mask(hand, cand)
-    touched, moved, lost, points = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
+    f, joints, q, report = _opened(hand, hc, cand, cube, name)
+    out = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, _contact_mask(hand, cand))
+    return hc, f, joints, q, out
+
+
+def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
+    hand, cube, grid, cand = grasp
+    hc, f, joints, q, (touched, moved, lost, points) = _reclosed(grasp, "thumb")
     assert moved[f] and not lost.any() and moved.sum() == 1
     again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)  # exact, fresh
     finger = hand.fingers[f]
@@ -86,10 +93,7 @@ def test_a_finger_whose_fixed_tip_meets_the_object_before_its_pad_link_is_no_con
     # cube with the tip link fixed to its distal (pad) link while the pad link itself stays
     # 2.02 mm off: beyond the judged 2 mm, so no pad contact, and the finger stays open.
     hand, cube, grid, cand = grasp
-    hc = fcl_api.HandCollision(hand)
-    f, joints, q, report = _opened(hand, hc, cand, cube, "index")
-    contact = _contact_mask(hand, cand)
-    touched, moved, lost, points = touch_pads(hc, hand, q, cand.wrist_in_object, cube, grid, report, contact)
+    hc, f, joints, q, (touched, moved, lost, points) = _reclosed(grasp, "index")
     assert lost[f] and not moved[f] and np.isnan(points[f]).all()
     np.testing.assert_array_equal(touched[joints], q[joints])
     again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)
