@@ -8,8 +8,9 @@ claw's from past its open posture where it can bend back, :data:`CLAW_OPEN_PAST`
 the thumb's and a claw's pre-shape joints anywhere in their range (the thumb's also where
 they move another finger too), as is any pre-shape joint wider than :data:`WIDE_PRESHAPE`
 (the Barrett hand's spread); the other fingers' abduction near its open value; the grasp
-centre's shift across the palm uniformly within its bounds. A particle is kept when its decoding is legal with at least two pad contacts; an illegal finger gets a new,
-more open pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
+centre's shift across the palm uniformly within its bounds. A particle is kept when its
+decoding is legal with at least two pad contacts; an illegal finger gets a new, more open
+pre-shape (:data:`REGENERATE_ROUNDS` bounded rounds).
 
 The swarm asks for a few particles per iteration, each call a batch of a dozen draws or
 so. The draws are sampled and verified in a pool of at least :data:`POOL_BATCH` at a time
