@@ -41,8 +41,9 @@ SIMULATE_SEEDS = 4
 SECOND_SEARCH_SEEDS = 10
 FALLBACK_SEEDS = 4
 #: Inspire plans (object, seed; the default swarm, simulate) with a grasp that dropped and
-#: held with the firmer squeeze (bench/held_rate.py --hand inspire --simulate).
-FIRMER_PLANS = (("mug", 0), ("potted_meat_can", 1), ("gelatin_box", 0))
+#: held with the firmer squeeze (measured over 8 objects, seeds 0-1: only the gelatin box's
+#: seed 1).
+FIRMER_PLANS = (("gelatin_box", 1),)
 #: Allegro-like plans of the screwdriver (seeds; the default swarm, simulate): seed 4's
 #: grasps all dropped in three searches and held in the fourth, seed 5's held in its second
 #: (measured).
@@ -365,7 +366,7 @@ def test_simulate_without_the_simulation_answers_as_without_it(hands, searches, 
 
 
 def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, searches):
-    """The Shadow's screwdriver lying on a table (seed 2): none of the six searches with the
+    """The Shadow's screwdriver lying on a table (seed 0): none of the six searches with the
     paper's guidance (palm y along the handle, so the thumb opposes along it) found a grasp
     that held; the first search with the guidance turned (the fingers along the handle,
     the thumb's opposition across it) did, and the plan returns only held grasps."""
@@ -374,7 +375,7 @@ def test_simulate_turns_a_long_objects_guidance_in_its_last_searches(hands, sear
 
     obj = _object("phillips_screwdriver")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))
-    result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(2),
+    result = plan(obj, options=PlanOptions(max_grasps=5, simulate=True), rng=np.random.default_rng(0),
                   hand=hands["shadow"], scene=table)
     assert searches == [False] * TURNED_ROUNDS_FROM + [True]
     assert result.candidates and {c.sim_result for c in result.candidates} == {SIM_HELD}
@@ -569,7 +570,7 @@ def test_searches_go_on_while_none_found_a_balanced_grasp(hands, monkeypatch):
     real = any_hand_planner.best_class
     monkeypatch.setattr(any_hand_planner, "best_class", lambda checked: classes.append(real(checked)) or classes[-1])
     sphere = builtin("sphere")
-    result = plan(sphere, options=options, rng=np.random.default_rng(4), hand=hands["inspire"],
+    result = plan(sphere, options=options, rng=np.random.default_rng(5), hand=hands["inspire"],
                   scene=Scene.table_under(np.asarray(sphere.mesh.vertices)))
     # force closure, not balanced; the second search found nothing above it; the third a balanced grasp
     assert classes == [CLOSURE_CLASS, BALANCED_CLASS]
@@ -597,15 +598,16 @@ def test_a_second_search_adds_to_the_first_searchs_grasps(hands, monkeypatch):
 
     monkeypatch.setattr(any_hand_planner, "select_any", recording)
     obj = builtin("sphere")
-    options = PlanOptions(particles=12, iterations=10, max_grasps=5)
+    options = PlanOptions(particles=20, iterations=10, max_grasps=5)
 
     def rank_class(c):
         return 3 if c.balanced else 2 if c.force_closure else int(c.valid)
 
     # The first seeds (bounded) until a plan's first search has no balanced robust
     # force-closure grasp of the sphere, so that a second search runs for that (seed 1 with
-    # the Allegro-like hand and a small swarm; with the default swarm the first search found
-    # one in each of seeds 0-39): most first searches find one (a second search that adds
+    # the Allegro-like hand and a swarm of 20 x 10; with the default swarm the first search
+    # found one in each of seeds 0-39, with 12 x 10 the plans of seeds 0-9 searched four times
+    # or found nothing in the second search): most first searches find one (a second search that adds
     # more of them: test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for).
     for seed in range(SECOND_SEARCH_SEEDS):
         calls.clear()
@@ -733,13 +735,13 @@ def test_a_second_search_runs_while_fewer_balanced_grasps_than_asked_for(hands, 
 def test_a_plan_whose_force_closure_is_not_robust_says_so(hands):
     """A plan whose best grasps are force closure only without the normals' spread (robust
     epsilon 0: contacts on the bowl's rim) says so in its message, with how such grasps
-    held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 11 (in
-    seeds 0-10 its best grasps are not force closure at all)."""
+    held; a plan with a robust grasp (the cube) does not. The Shadow's bowl, seed 1 (seed
+    0's best grasp is not force closure at all)."""
     from grasp_apso.search.any_hand_planner import FRAGILE_HELD, UNBALANCED_ROUNDS
 
     options = PlanOptions(particles=30, iterations=20, max_grasps=2)
     bowl = _object("bowl")
-    result = plan(bowl, options=options, rng=np.random.default_rng(11), hand=hands["shadow"],
+    result = plan(bowl, options=options, rng=np.random.default_rng(1), hand=hands["shadow"],
                   scene=Scene.table_under(np.asarray(bowl.mesh.vertices)))
     best = result.candidates[0]
     assert best.force_closure

@@ -88,12 +88,23 @@ def test_a_pad_standing_off_the_object_is_closed_onto_it(grasp):
     assert np.isnan(points[np.arange(len(hand.fingers)) != f]).all()
 
 
-def test_a_finger_whose_fixed_tip_meets_the_object_before_its_pad_link_is_no_contact(grasp):
-    # The index of this grasp, opened and closed back along its closing path, meets the
-    # cube with the tip link fixed to its distal (pad) link while the pad link itself stays
-    # 2.02 mm off: beyond the judged 2 mm, so no pad contact, and the finger stays open.
-    hand, cube, grid, cand = grasp
-    hc, f, joints, q, (touched, moved, lost, points) = _reclosed(grasp, "index")
+@pytest.fixture(scope="module")
+def seed_3_grasp(grasp):
+    """The same hand's cube grasp of seed 3 (:func:`plan_allegro_cube`)."""
+    from conftest import plan_allegro_cube
+
+    hand, _, grid, _ = grasp
+    cube, cand = plan_allegro_cube(hand, 3)
+    return hand, cube, grid, cand
+
+
+def test_a_finger_whose_fixed_tip_meets_the_object_before_its_pad_link_is_no_contact(seed_3_grasp):
+    # The middle finger of the seed-3 grasp, opened 3 mm and closed back along its closing
+    # path, meets the cube with its distal link (the pad link, its tip, is fixed to it)
+    # 1.6 mm off while the pad link itself stays 3.1 mm off: beyond the judged 2 mm, so no
+    # pad contact, and the finger stays open.
+    hand, cube, grid, cand = seed_3_grasp
+    hc, f, joints, q, (touched, moved, lost, points) = _reclosed(seed_3_grasp, "middle")
     assert lost[f] and not moved[f] and np.isnan(points[f]).all()
     np.testing.assert_array_equal(touched[joints], q[joints])
     again = fcl_api.object_report(hc, touched, cand.wrist_in_object, cube)
