@@ -216,7 +216,9 @@ def test_a_client_that_leaves_has_its_requests_cancelled_within_a_second(client_
             dying.kill()
             dying.wait(timeout=10.0)
         else:
-            assert _stop(dying, signal.SIGINT) is not None
+            # 30 s: twice on this 2-core machine loaded beside the suite, the client's
+            # rclpy shutdown took over 10 s (the node's side is timed from its exit)
+            assert _stop(dying, signal.SIGINT, timeout=30.0) is not None
         left = time.time()
         line = node_out.wait(lambda lines: next((l for l in lines if 'no service client left: cancelled 3' in l), ''),
                              15.0)
