@@ -98,7 +98,7 @@ def seed_3_grasp(grasp):
     return hand, cube, grid, cand
 
 
-def test_a_finger_whose_fixed_tip_meets_the_object_before_its_pad_link_is_no_contact(seed_3_grasp):
+def test_a_finger_whose_fixed_link_meets_the_object_before_its_pad_link_is_no_contact(seed_3_grasp):
     # The middle finger of the seed-3 grasp, opened 3 mm and closed back along its closing
     # path, meets the cube with its distal link (the pad link, its tip, is fixed to it)
     # 1.6 mm off while the pad link itself stays 3.1 mm off: beyond the judged 2 mm, so no
