@@ -74,6 +74,8 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
 
+from grasp_apso.simulation.settings import DEXGRASPBENCH_PARAMETERS as DEXGRASPBENCH  # noqa: E402
+
 MESH_DIR = REPO / "grasp_apso" / "data" / "meshes"
 BUILTINS = ("sphere", "cube", "barrel", "fish")
 #: Rules for choosing the best grasp among a plan's candidates, compared offline (every
@@ -159,33 +161,19 @@ def general_hand(spec: str):
     return _HANDS[spec]
 
 
-#: DexGraspBench's simulation parameters where they differ from ours (:func:`dexgraspbench_settings`).
-DEXGRASPBENCH = {"torsional_friction": 0.02, "kp": 5.0, "solref": (0.0125, 1.0), "solimp": (0.7, 0.97, 0.00055),
-                 "hand_close_time": 0.4, "hand_squeeze_time": 0.4, "settle_time": 0.0, "max_settle_time": 0.0}
+#: DexGraspBench's simulation parameters where they differ from ours (one source:
+#: :data:`grasp_apso.simulation.settings.DEXGRASPBENCH_PARAMETERS`, which says where each
+#: comes from; with ``simulate`` the planner holds a general hand's grasps to them too):
+#: ``DEXGRASPBENCH``, imported above.
 
 
 def dexgraspbench_settings():
-    """The simulation settings of DexGraspBench's evaluation (github.com/JYChen18/DexGraspBench,
-    ``src/util/hand_util.py``, ``src/task/eval_func/fc_mocap.py``, ``config/task/eval.yaml``
-    and its README), where they differ from ours; the protocol (the wrist fixed, pre-grasp ->
-    grasp -> squeeze, 10 m/s^2 for 2 s in six directions, 5 cm / 15 degrees from the planned
-    pose, 0.1 kg, no table in the disturbance) and the sliding friction (the planner's mu)
-    stay ours:
-
-    - torsional friction 0.02 (``miu_coef: [0.6, 0.02]``; ours 0.005, MuJoCo's default);
-    - servo gain 5 (the README: "raising the hand's kp from 1 to 5"; ours 2);
-    - contacts: DexGraspBench gives the hand's geoms solref (0.005, 1) and solimp (0.5, 0.99,
-      0.0001) and leaves the object's at MuJoCo's defaults, which MuJoCo averages; our object
-      geoms carry every contact's parameters (priority), so they take that average;
-    - pre-grasp -> grasp and grasp -> squeeze each interpolated over 10 x 10 steps of 4 ms
-      (0.4 s), the disturbance right after the squeeze (no settling).
-
-    Not replicated: ``noslip_iterations = 2`` (no setting of ours)."""
-    from dataclasses import replace
-
+    """The simulation settings of DexGraspBench's evaluation: ours with
+    :data:`DEXGRASPBENCH` (``SimulationSettings().dexgraspbench()``); the protocol and the
+    sliding friction (the planner's mu) stay ours."""
     from grasp_apso.simulation.settings import SimulationSettings
 
-    return replace(SimulationSettings(), **DEXGRASPBENCH)
+    return SimulationSettings().dexgraspbench()
 
 
 def run_case(task: tuple) -> dict:

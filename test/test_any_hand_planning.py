@@ -346,12 +346,12 @@ def test_simulate_without_the_simulation_answers_as_without_it(hands, searches, 
     grasps of the search of the best class, not the first search's (DexHand's mug: the
     first search's five grasps without force closure where a later one had three with it);
     the reply says why nothing was simulated."""
-    from grasp_apso.search import any_hand_select
+    from grasp_apso.search import any_hand_simulate
     from grasp_apso.search.any_hand_planner import UNBALANCED_ROUNDS
     from grasp_apso.search.result import SIM_NOT_RUN
 
-    found = any_hand_select.optional_module
-    monkeypatch.setattr(any_hand_select, "optional_module",
+    found = any_hand_simulate.optional_module
+    monkeypatch.setattr(any_hand_simulate, "optional_module",
                         lambda name: None if name == "grasp_apso.simulation.any_hand" else found(name))
     obj = _object("mug")
     table = Scene.table_under(np.asarray(obj.mesh.vertices))

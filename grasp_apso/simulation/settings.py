@@ -4,13 +4,37 @@ protocol so that the MJCF builder and the protocol both use them without a cycle
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..errors import InputError
 from ..search.motion_times import CLOSE_TIME, SQUEEZE_TIME
 from .convex import ConvexSettings
 
-__all__ = ["SimulationSettings"]
+__all__ = ["SimulationSettings", "DEXGRASPBENCH_PARAMETERS"]
+
+#: DexGraspBench's evaluation parameters where they differ from this check's
+#: (github.com/JYChen18/DexGraspBench, ``src/util/hand_util.py``,
+#: ``src/task/eval_func/fc_mocap.py``, ``config/task/eval.yaml`` and its README); the protocol
+#: (the wrist fixed, pre-grasp -> grasp -> squeeze, 10 m/s^2 for 2 s in six directions, 5 cm
+#: / 15 degrees from the planned pose, 0.1 kg, no table in the disturbance) and the sliding
+#: friction (the planner's mu) are the same:
+#:
+#: - torsional friction 0.02 (``miu_coef: [0.6, 0.02]``; this check's 0.005);
+#: - servo gain 5 (its README: "raising the hand's kp from 1 to 5"; this check's 2);
+#: - contacts: it gives the hand's geoms solref (0.005, 1) and solimp (0.5, 0.99, 0.0001)
+#:   and leaves the object's at MuJoCo's defaults, which MuJoCo averages; this check's object
+#:   geoms carry every contact's parameters (priority), so they take that average;
+#: - pre-grasp -> grasp and grasp -> squeeze each over 10 x 10 steps of 4 ms (0.4 s), the
+#:   disturbance right after the squeeze (no settling).
+#:
+#: Not replicated: ``noslip_iterations = 2`` (no setting of this check's). With
+#: ``simulate`` a general hand's grasp is held only when it holds with this check's
+#: parameters and with these (:meth:`SimulationSettings.dexgraspbench`): a client's servos
+#: may be stiffer than this check's, and its contacts softer (``bench/held_rate.py
+#: --dexgraspbench`` replays every candidate with both).
+DEXGRASPBENCH_PARAMETERS = {"torsional_friction": 0.02, "kp": 5.0, "solref": (0.0125, 1.0),
+                            "solimp": (0.7, 0.97, 0.00055), "hand_close_time": 0.4, "hand_squeeze_time": 0.4,
+                            "settle_time": 0.0, "max_settle_time": 0.0}
 
 
 @dataclass(frozen=True)
@@ -177,3 +201,8 @@ class SimulationSettings:
             raise InputError("settings.solref/solimp: expected 2 and 3 finite numbers")
         if not isinstance(self.decomposition, ConvexSettings):
             raise InputError("settings.decomposition: expected a ConvexSettings")
+
+    def dexgraspbench(self) -> "SimulationSettings":
+        """These settings with DexGraspBench's evaluation parameters
+        (:data:`DEXGRASPBENCH_PARAMETERS`), the others kept."""
+        return replace(self, **DEXGRASPBENCH_PARAMETERS)
