@@ -26,12 +26,8 @@ cones, :func:`grasp_apso.quality.closing.balanced_forces`; ``q + J^T f / kp``,
 (:func:`grasp_apso.simulation.any_hand.simulate_any_hand`) best first until ``max_grasps``
 held or all were tried: a grasp that drops is tried once more with a firmer squeeze
 (:mod:`.any_hand_squeeze`), a grasp that holds is held only if it holds with
-DexGraspBench's parameters too (:data:`~grasp_apso.simulation.settings.DEXGRASPBENCH_PARAMETERS`:
-stiffer servos, softer contacts, faster ramps), and the grasps below the best class, left
-out without ``simulate``, are simulated last. Measured (``bench/held_rate.py --seeds 3
---simulate --dexgraspbench``, 63 plans on a table), best grasps held in this check / with
-DexGraspBench's parameters, one check -> both: the Wuji hand 57 / 52 -> 57 / 57, the Shadow
-57 / 57 and the Schunk SVH 49 / 52 unchanged.
+DexGraspBench's parameters too (:mod:`.any_hand_simulate`), and the grasps below the best
+class, left out without ``simulate``, are simulated last.
 """
 
 from __future__ import annotations
@@ -437,7 +433,7 @@ def select_any(model, problem, swarm, archive, options, pose, obj, scene,
     selection = Selection(SelectionCounts(n_groups, rejected, len(fallback)), kept[0].note)
     if options.simulate:
         # With the simulation they are its last resort: simulated after the others, and
-        # returned only when one of them holds and none of the others does (:func:`.any_hand_simulate.simulate_any`).
+        # returned only when one of them holds and none of the others does (simulate_any).
         for c in fallback:
             c.fallback = True
         kept = kept + fallback
