@@ -74,6 +74,8 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
 
+# DexGraspBench's simulation parameters where they differ from ours (one source, which says
+# where each comes from; with ``simulate`` the planner holds a general hand's grasps to them too)
 from grasp_apso.simulation.settings import DEXGRASPBENCH_PARAMETERS as DEXGRASPBENCH  # noqa: E402
 
 MESH_DIR = REPO / "grasp_apso" / "data" / "meshes"
@@ -159,12 +161,6 @@ def general_hand(spec: str):
         from grasp_apso.model.hands.load import load_hand as load_any
         _HANDS[spec] = load_any(hand_path(spec))
     return _HANDS[spec]
-
-
-#: DexGraspBench's simulation parameters where they differ from ours (one source:
-#: :data:`grasp_apso.simulation.settings.DEXGRASPBENCH_PARAMETERS`, which says where each
-#: comes from; with ``simulate`` the planner holds a general hand's grasps to them too):
-#: ``DEXGRASPBENCH``, imported above.
 
 
 def dexgraspbench_settings():

@@ -23,6 +23,16 @@ os.environ['PYTHONPATH'] = os.pathsep.join([REPO_ROOT] + _pp)
 import pytest  # noqa: E402
 
 
+def shipped_object(name: str):
+    """A built-in object (sphere, cube, barrel, fish), or a mesh of
+    ``grasp_apso/data/meshes`` by its file name without ``.stl``."""
+    from grasp_apso.model.builtin import builtin
+    from grasp_apso.model.mesh_files import from_file
+
+    mesh = os.path.join(REPO_ROOT, "grasp_apso", "data", "meshes", f"{name}.stl")
+    return from_file(mesh) if os.path.isfile(mesh) else builtin(name)
+
+
 def plan_allegro_cube(hand, seed: int):
     """(cube, best candidate): ``hand`` planned on the built-in cube resting on a table,
     a small swarm, seed ``seed``."""

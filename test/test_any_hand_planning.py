@@ -24,7 +24,6 @@ import trimesh
 from grasp_apso.errors import PlanningError
 from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
-from grasp_apso.model.mesh_files import from_file
 from grasp_apso.model.scene import Scene
 from grasp_apso.search.planner import PlanOptions, plan
 from hand_files import installed_hand, write_allegro_like
@@ -76,9 +75,10 @@ def _reply_robust_epsilon(obj, cand, options) -> float:
 
 
 def _object(name: str):
-    """A built-in object, or a shipped mesh by name."""
-    mesh = ROOT / "grasp_apso" / "data" / "meshes" / f"{name}.stl"
-    return from_file(str(mesh)) if mesh.is_file() else builtin(name)
+    """A built-in object, or a shipped mesh by name (:func:`conftest.shipped_object`)."""
+    from conftest import shipped_object
+
+    return shipped_object(name)
 
 
 def _fcl_geometry(geom):

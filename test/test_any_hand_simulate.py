@@ -9,14 +9,10 @@ its three postures), once with the check's parameters and once with DexGraspBenc
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from grasp_apso.model.builtin import builtin
 from grasp_apso.model.hands.load import load_hand
-from grasp_apso.model.mesh_files import from_file
 from grasp_apso.model.scene import Scene
 from grasp_apso.search.planner import PlanOptions, plan
 from grasp_apso.search.result import SIM_DROPPED, SIM_HELD
@@ -24,7 +20,6 @@ from grasp_apso.simulation.any_hand import simulate_any_hand
 from grasp_apso.simulation.settings import DEXGRASPBENCH_PARAMETERS, SimulationSettings
 from hand_files import write_allegro_like
 
-ROOT = Path(__file__).resolve().parents[1]
 #: A small swarm (as the other simulate tests) asking for two grasps.
 OPTIONS = PlanOptions(particles=30, iterations=20, max_grasps=2, simulate=True)
 #: The banana lying on a table, seed 2: its one returned grasp held with the check's
@@ -39,8 +34,10 @@ def allegro(tmp_path_factory):
 
 
 def _on_table(name: str):
-    mesh = ROOT / "grasp_apso" / "data" / "meshes" / f"{name}.stl"
-    obj = from_file(str(mesh)) if mesh.is_file() else builtin(name)
+    """A built-in or shipped object and a table under its lowest point."""
+    from conftest import shipped_object
+
+    obj = shipped_object(name)
     return obj, Scene.table_under(np.asarray(obj.mesh.vertices))
 
 
