@@ -6,6 +6,7 @@ Rerunnable diagnostic, not a test::
     .venv/bin/python bench/dgb_factors.py --hand FILE --cases sphere:2 cup:0
     .venv/bin/python bench/dgb_factors.py --hand FILE --from-json bench/results/held_rate_FILE.json
     .venv/bin/python bench/dgb_factors.py --hand FILE --cases banana:0 --pregrasp-fractions 0.5 0.2
+    .venv/bin/python bench/dgb_factors.py --hand dclaw --cases sphere:0 cube:1 --no-groups --squeeze-scales 0.5
 
 ``bench/held_rate.py --dexgraspbench`` checks every candidate with our simulation parameters
 and with DexGraspBench's (:data:`held_rate.DEXGRASPBENCH`); where the two verdicts differ
@@ -21,8 +22,9 @@ the groups being the servo gain, the torsional friction, the contact softness (s
 contact impedance (solimp), the closing and squeeze ramp times and the settling before the
 disturbance. ``--pregrasp-fractions`` adds DexGraspBench's parameters with the fingers
 starting that fraction of the way from the grasp posture back to the reply's pre-grasp;
-``--squeeze-scales`` adds them with the reply's squeeze offset scaled. A group whose ``dgb
-- G`` holds where ``dgb`` drops is the one that decides.
+``--squeeze-scales`` adds them, and ours, with the reply's squeeze offset scaled;
+``--no-groups`` leaves out the one-group-at-a-time replays. A group whose ``dgb - G`` holds
+where ``dgb`` drops is the one that decides.
 
 ``--from-json`` takes the cases from a ``held_rate.py --dexgraspbench`` run of the same
 hand: the plans whose best grasp dropped with DexGraspBench's parameters (``--all-cases``:
@@ -55,14 +57,17 @@ GROUPS = {"servo gain": ("kp",), "torsional friction": ("torsional_friction",), 
           "settling": ("settle_time", "max_settle_time")}
 
 
-def variants(pregrasp_fractions=(), squeeze_scales=()) -> list[tuple[str, dict, float]]:
-    """The replays: (label, settings overrides of ours, squeeze scale)."""
+def variants(pregrasp_fractions=(), squeeze_scales=(), groups: bool = True) -> list[tuple[str, dict, float]]:
+    """The replays: (label, settings overrides of ours, squeeze scale); without ``groups``
+    only ``ours``, ``dgb`` and the pre-grasp and squeeze variants."""
     dgb = dict(DEXGRASPBENCH)
     out = [("ours", {}, 1.0), ("dgb", dgb, 1.0)]
-    out += [(f"dgb - {g}", {k: v for k, v in dgb.items() if k not in keys}, 1.0) for g, keys in GROUPS.items()]
-    out += [(f"ours + {g}", {k: dgb[k] for k in keys}, 1.0) for g, keys in GROUPS.items()]
+    if groups:
+        out += [(f"dgb - {g}", {k: v for k, v in dgb.items() if k not in keys}, 1.0) for g, keys in GROUPS.items()]
+        out += [(f"ours + {g}", {k: dgb[k] for k in keys}, 1.0) for g, keys in GROUPS.items()]
     out += [(f"dgb, pre-grasp x{f:g}", dgb | {"pregrasp_fraction": float(f)}, 1.0) for f in pregrasp_fractions]
     out += [(f"dgb, squeeze x{s:g}", dgb, float(s)) for s in squeeze_scales]
+    out += [(f"ours, squeeze x{s:g}", {}, float(s)) for s in squeeze_scales]
     return out
 
 
@@ -128,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--all-cases", action="store_true", help="with --from-json: every plan, not only drops")
     parser.add_argument("--pregrasp-fractions", nargs="*", type=float, default=[])
     parser.add_argument("--squeeze-scales", nargs="*", type=float, default=[])
+    parser.add_argument("--no-groups", action="store_true",
+                        help="replay only ours, dgb and the --pregrasp-fractions / --squeeze-scales variants")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
@@ -152,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     bad = [f for f in args.pregrasp_fractions if not 0.0 <= f <= 1.0] + [s for s in args.squeeze_scales if s < 0.0]
     if bad:
         raise SystemExit(f"--pregrasp-fractions in [0, 1], --squeeze-scales >= 0: got {bad}")
-    runs = variants(args.pregrasp_fractions, args.squeeze_scales)
+    runs = variants(args.pregrasp_fractions, args.squeeze_scales, groups=not args.no_groups)
     tasks = [(args.hand, name, seed, algorithm, plan_fields, runs) for name, seed, algorithm in cases]
     t0 = time.perf_counter()
     if args.workers > 1:
