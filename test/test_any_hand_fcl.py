@@ -11,6 +11,7 @@ Hands: the Shadow hand (MJCF, capsules, boxes, a forearm mesh) and the Allegro-l
 
 from __future__ import annotations
 
+import math
 import threading
 
 import fcl
@@ -589,3 +590,37 @@ def test_the_object_bound_never_puts_a_point_farther_out_than_it_is(mesh_name):
     assert shown.mean() > 0.3  # and it does bound: most points around are shown outside
     for within in (0.0, 0.0015, 0.01):  # the compiled filter reads the same planes
         assert np.array_equal(shape.may_reach(points, within), gap < within)
+
+
+def test_an_objects_edge_pressed_into_a_link_between_its_vertices_is_read_at_its_depth(hands):
+    """An object's sharp edge pressing into a link's face is as deep as the edge, even where
+    the object's vertices lie outside the link: a thin wedge whose 80 mm ridge lies 1.5 mm
+    inside the Allegro-like index proximal's box face (the box 54 mm long, the ridge's ends
+    outside it). Read from the object's vertices and the box's surface samples alone (inside
+    the thin wedge by 0.3 mm at most) it was legal; dex-urdf's LEAP thumb took the mug's rim
+    1.31 mm into its fingertip, read 0.65 mm. Judged by the geometry: the ridge is a straight
+    line 1.5 mm under the face, away from the box's other faces."""
+    hand = hands["allegro"]
+    hc = HandCollision(hand)
+    q = hand.open_configuration()
+    link = "index_proximal"
+    part = [k for k in range(len(hc.shapes.geoms)) if hc.links[hc.shapes.part_link[k]] == link]
+    assert len(part) == 1 and hc.shapes.geoms[part[0]].kind == "box"
+    hx, hy, hz = hc.shapes.geoms[part[0]].size
+    pose = hc.part_poses(q, np.eye(4))[part[0]]  # the box frame in the object (= root) frame
+    depth, half_opening, height = 0.0015, math.radians(10.0), 0.02
+    apex, ridge = hx - depth, 1.5 * hz
+    wide = height * math.tan(half_opening)
+    # the wedge's cross-section: the apex inside the +x face, the base 20 mm outside it
+    section = [(apex, 0.0), (apex + height, wide), (apex + height, -wide)]
+    local = np.array([(x, y, z) for z in (-ridge, ridge) for x, y in section])
+    faces = [(0, 2, 1), (3, 4, 5), (0, 1, 4), (0, 4, 3), (1, 2, 5), (1, 5, 4), (2, 0, 3), (2, 3, 5)]
+    wedge = trimesh.Trimesh(local @ pose[:3, :3].T + pose[:3, 3], faces, process=False)
+    wedge.fix_normals()
+    assert wedge.is_watertight and wedge.volume > 0
+    inside = np.all(np.abs(local) < np.array([hx, hy, hz]), axis=1)
+    assert not inside.any()  # no vertex of the wedge is inside the box
+    report = object_report(hc, q, np.eye(4), wedge)
+    read = -float(report.link_distance[list(report.links).index(link)])
+    assert read == pytest.approx(depth, abs=2e-4)
+    assert not report.legal

@@ -198,7 +198,7 @@ def object_distances(shapes: HandShapes, objs: list, poses: np.ndarray, parts: n
         near = near[shape.may_reach(near, inflate[i])]
         depth = float(shape.distance(near).min()) - inflate[i] if len(near) else 0.0
         if verts is None:
-            verts = to_frame(pose, shape.vertices)
+            verts = to_frame(pose, shape.edge_points)
         near = _within(verts, centre[i], shapes.bound_radius[k])
         if len(near):
             depth = min(depth, float(_sdf(shapes.geoms[k], poses[k], near).min()))
