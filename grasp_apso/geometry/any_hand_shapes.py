@@ -16,11 +16,12 @@ each inflated by the radius; a box, cylinder or mesh: points on its surface at m
 object's vertices and points along its edges as far apart
 (:attr:`ObjectShape.edge_points`) in the part's exact signed distance (a sharp corner or
 edge pressing into a flat face, as a mug's rim into a fingertip); the depth is the larger
-of the two. It is the depth of the deepest point of one solid inside the other: for a sphere or capsule, exact; for the surface samples, short by about
-``spacing**2 / (8 r)`` where ``r`` is the distance of the deepest point from the other
-solid's medial axis (26 um for a 3 mm deep contact on a 30 mm sphere; up to
-``0.71 * spacing`` = 1.8 mm for a penetration reaching that axis, a grasp that is illegal
-anyway). Never positive for shapes in contact.
+of the two. It is the depth of the deepest point of one solid inside the other: for a
+sphere or capsule, exact; for the surface samples, short by about ``spacing**2 / (8 r)``
+where ``r`` is the distance of the deepest point from the other solid's medial axis (26 um
+for a 3 mm deep contact on a 30 mm sphere; up to ``0.71 * spacing`` = 1.8 mm for a
+penetration reaching that axis, a grasp that is illegal anyway). Never positive for shapes
+in contact.
 
 :class:`ObjectShape`: an object mesh's BVH (shared with :func:`.collision.object_bvh`), its
 exact signed distance (:class:`~grasp_apso.model.hands.mesh_distance.MeshDistance`) and
