@@ -33,7 +33,10 @@ link at the candidate's ``wrist_pose``:
     object's points inside a link only where the link's mesh is wound consistently);
 (e) ``on_pad``: every contact the reply reports lies within 2 mm of its finger's pad body
     (the pad link and the links the URDF joins to it by fixed joints): trimesh's distance
-    to their collision elements, placed by yourdfpy.
+    to their collision elements, placed by yourdfpy (a mesh as the file gives it: where that
+    is an open triangle soup, the planner, as MuJoCo, reads its convex hull);
+(f) ``surface``: every contact the reply reports lies on the object's surface, within 2 mm
+    of its mesh (trimesh's distance, itself off by up to 0.2 mm).
 
 Also reported, not checks: ``pad_sph``, candidates whose pad spheres (radius
 ``Finger.pad_radius`` through the pad point ``Finger.pad_center``, placed by yourdfpy,
@@ -79,7 +82,7 @@ TABLE_TOL = 0.0005   # m, below the clearance
 PAD_TOL = 0.002      # m, pad centre to the object's surface
 DEPTH_TOL = 0.001    # m, a link inside the object
 LIMIT_TOL = 1e-6     # rad or m
-CHECKS = ("table", "limits", "pads", "depth", "on_pad")
+CHECKS = ("table", "limits", "pads", "depth", "on_pad", "surface")
 #: Reported next to the checks: pad spheres on the surface, pad points themselves within 2 mm,
 #: force closure.
 INFO = ("pad_sph", "pad_pts", "fc")
@@ -272,7 +275,7 @@ def penetration(link_mesh: trimesh.Trimesh, obj_mesh: trimesh.Trimesh, rng: np.r
 
 
 def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, clearance, rng) -> dict:
-    """The five independent checks of one candidate (see the module docstring)."""
+    """The six independent checks of one candidate (see the module docstring)."""
     names = hand.actuated_joints
     q, q_pre = np.asarray(cand.joint_positions)[:len(names)], np.asarray(cand.pre_grasp_positions)[:len(names)]
     cfg = ind.configuration(names, q)
@@ -319,6 +322,8 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
         facing = float((nearest[0] - centre) @ tip.face_normals[face[0]]) * (-1.0 if inside else 1.0)
         pads.append((contact.finger, float(gap), facing >= -0.05 * max(float(dist[0]), 1e-9)))
         points.append(float(dist[1]))
+    # (f) the reply's contacts lie on the object's surface
+    surface = trimesh.proximity.closest_point(obj_mesh, np.array([c.position for c in cand.contacts], float))[1]
     return {
         "rank": cand.rank, "table_mm": 1000 * table_d, "table_link": table_link,
         "table": bool(table_d >= clearance - TABLE_TOL),
@@ -332,6 +337,8 @@ def check_candidate(ind: IndependentHand, hand, cand, obj_mesh, obj_fcl, table, 
         "pads_mm": {link: round(1000 * g, 2) for link, g in link_gap.items()},
         "on_pad_mm": [round(1000 * d, 2) for d in on_body],
         "on_pad": bool(on_body) and max(on_body) <= PAD_TOL,
+        "surface_mm": [round(1000 * float(d), 3) for d in surface],
+        "surface": bool(len(surface)) and float(np.max(surface)) <= PAD_TOL,
         "pads": bool(link_gap) and max(link_gap.values()) <= PAD_TOL,
         "force_closure": bool(cand.force_closure), "fingers": [c.finger for c in cand.contacts],
     }

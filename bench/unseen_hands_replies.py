@@ -23,7 +23,7 @@ points and checks what they answer, as a user of them receives it::
 
 Every candidate then goes through the independent checks of ``bench/unseen_hands.py`` (the
 URDF read again with yourdfpy, python-fcl on its collision geometry: ``table``, ``limits``,
-``pads``, ``depth``, ``on_pad``) and one more, ``names``: the reply's joint names are the
+``pads``, ``depth``, ``on_pad``, ``surface``) and one more, ``names``: the reply's joint names are the
 movable joints of the URDF below the root link (the frame of ``grasp_pose``) that are not
 mimic followers, each once. Prints per hand and
 entry point the plans with a grasp and the candidates passing each check, and in how many

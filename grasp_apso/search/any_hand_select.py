@@ -46,6 +46,7 @@ from .any_hand_pads import final_decodings, pads_on
 from .any_hand_simulate import simulate_any
 from .any_hand_squeeze import balanced_squeeze, closing_imbalance, optional_module, sim_settings, squeeze_posture
 from .archive import wrist_groups, wrists_distinct
+from .exact_contacts import RECLOSE_FROM, exact_contacts
 from .exact_seat import pad_body_distances, pad_body_rows, pad_nearest, seat_fingers
 from .exact_touch import TOUCH_GAP, touch_pads
 from .ranking import grasp_quality, rank_order, ranking_class
@@ -202,6 +203,7 @@ def _verify(model, c: AnyChecked, options, pose, obj, scene, fcl_api, hc) -> Any
         decoded.closed[0, model.layout.joints] = q
     if c.fcl.legal:  # (a grasp refused at the object stays refused)
         q = _touch(model, c, fcl_api, hc, q, root, options, obj, rest)
+        _on_surface(model, c, hc, q, root, options, obj)
     c.valid = c.valid and bool(c.fcl.legal)
     settings = sim_settings()
     if settings is not None and c.squeeze is None:
@@ -269,6 +271,25 @@ def _touch(model, c: AnyChecked, fcl_api, hc, q: np.ndarray, root: np.ndarray, o
     _closure(c, options, obj)
     c.squeeze = None if balanced else squeeze_posture(model, q_new)
     return q_new
+
+
+def _on_surface(model, c: AnyChecked, hc, q: np.ndarray, root: np.ndarray, options, obj) -> None:
+    """The grasp's contacts moved onto the object's mesh and, where the grid placed one away
+    from its finger's pad body, to where that body is nearest the object
+    (:func:`.exact_contacts.exact_contacts`); the closure and the closing imbalance follow
+    when one moved more than :data:`.exact_contacts.RECLOSE_FROM`."""
+    from ..geometry.any_hand_shapes import object_shape
+
+    decoded = c.decoded
+    fingers = np.flatnonzero(decoded.contact[0])
+    points, normals = exact_contacts(model, hc, object_shape(obj), q, root, fingers,
+                                     decoded.contact_points[0, fingers], decoded.contact_normals[0, fingers])
+    moved = np.linalg.norm(points - decoded.contact_points[0, fingers], axis=1)
+    decoded.contact_points[0, fingers], decoded.contact_normals[0, fingers] = points, normals
+    if len(moved) and moved.max() > RECLOSE_FROM:
+        c.imbalance, balanced = closing_imbalance(model, decoded, obj)
+        _closure(c, options, obj)
+        c.squeeze = None if balanced else squeeze_posture(model, q)
 
 
 def pre_grasp_postures(hand, q: np.ndarray, q_open: np.ndarray) -> list[np.ndarray]:

@@ -83,7 +83,9 @@ def pad_nearest(hc, q: np.ndarray, root: np.ndarray, grid, parts: np.ndarray) ->
     point (3,) object frame that has it: the parts' surface samples
     (:func:`grasp_apso.geometry.any_hand_shapes.local_samples`) read on the object's
     signed-distance ``grid`` (a few hundred microseconds where a python-fcl query of a
-    mesh fingertip takes milliseconds; the rest is then checked exactly)."""
+    mesh fingertip takes milliseconds; the rest is then checked exactly), or on its exact
+    distance (an :class:`~grasp_apso.geometry.any_hand_shapes.ObjectShape`: ``.distance``
+    too)."""
     from ..geometry.any_hand_queries import to_frame
 
     poses = hc.part_poses(q, root)

@@ -83,8 +83,9 @@ def _point_triangle_sq(px, py, pz, tri):
 
 
 @_jit
-def _distances(points, triangles, centers, reach, seeds, pseudo, groups, group_center, group_reach, out):
-    """out[i] = signed distance from points[i] to the mesh (m, > 0 outside); seeds (N, k)
+def _distances(points, triangles, centers, reach, seeds, pseudo, groups, group_center, group_reach, out, closest):
+    """out[i] = signed distance from points[i] to the mesh (m, > 0 outside), closest[i] its
+    closest point on the mesh (``closest`` (N, 3), or (0, 3): not written); seeds (N, k)
     are measured first. Triangles come in groups of neighbours (``groups[g]`` to
     ``groups[g + 1]``) with a bounding sphere each: a group that cannot come closer than
     the best so far is skipped whole. The sign: the offset from the closest point against
@@ -115,6 +116,8 @@ def _distances(points, triangles, centers, reach, seeds, pseudo, groups, group_c
                         best_d = math.sqrt(best)
         n = pseudo[best_t, best_r]
         out[i] = best_d if ox * n[0] + oy * n[1] + oz * n[2] >= 0.0 else -best_d
+        if closest.shape[0] > 0:
+            closest[i, 0], closest[i, 1], closest[i, 2] = px - ox, py - oy, pz - oz
 
 
 def _pseudo_normals(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -175,11 +178,20 @@ class MeshDistance:
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """points : (N, 3) float, m -> (N,) float, m (> 0 outside)."""
+        return self._query(points, False)[0]
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """points : (N, 3) float, m -> (signed distances (N,) m, > 0 outside; the closest
+        points on the mesh (N, 3) m)."""
+        return self._query(points, True)
+
+    def _query(self, points: np.ndarray, with_closest: bool) -> tuple[np.ndarray, np.ndarray]:
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         k = min(_SEED_TRIANGLES, len(self._centers))
         _, seeds = self._tree.query(pts, k=k)
         seeds = np.ascontiguousarray(np.asarray(seeds, dtype=np.int64).reshape(len(pts), k))
         out = np.empty(len(pts))
+        closest = np.empty((len(pts) if with_closest else 0, 3))
         _distances(pts, self._triangles, self._centers, self._reach, seeds, self._pseudo, self._groups,
-                   self._group_center, self._group_reach, out)
-        return out
+                   self._group_center, self._group_reach, out, closest)
+        return out, closest
