@@ -7,8 +7,8 @@ signed-distance grid reads it (one Newton step,
 on the seven dex-urdf hands: LEAP's thumb on the mug 3.1 mm, the Shadow's on the sphere
 0.9 mm; the median 4-17 um), and now and then more than
 :data:`~.exact_touch.TOUCH_GAP` from the finger's pad body (the pad link and the links fixed
-to it, exact geometry) where the grid's nearest point and the body's differ (the Shadow's
-thumb 2.0-2.1 mm from its distal link). The verification's epsilon and the reply's contacts
+to it, exact geometry) where the grid's nearest point and the body's differ (6 contacts of
+the 199 candidates there, 2.0-2.2 mm from their pad body). The verification's epsilon and the reply's contacts
 are these points, and a client executes and checks the contacts it receives, so
 :func:`exact_contacts` moves each onto the mesh (its exact closest point,
 :meth:`grasp_apso.model.hands.mesh_distance.MeshDistance.closest`) and, when that point
@@ -27,9 +27,9 @@ from .exact_touch import TOUCH_GAP
 
 __all__ = ["exact_contacts", "RECLOSE_FROM"]
 
-#: m: a grasp whose contacts one of which moved farther than this has its closure and
-#: closing imbalance computed again (nearer, the epsilon changes by about move / object
-#: size: 0.2 % for 0.1 mm on a 5 cm object, and the check costs milliseconds).
+#: m: when one of a grasp's contacts moved farther than this, its closure and closing
+#: imbalance are computed again (a smaller move changes the epsilon by about move / object
+#: size, 0.2 % for 0.1 mm on a 5 cm object, and the analysis costs milliseconds).
 RECLOSE_FROM = 1e-4
 
 
