@@ -59,15 +59,14 @@ def exact_contacts(model, hc, shape, q: np.ndarray, root: np.ndarray, fingers: n
     if len(points) == 0:
         return points, normals
     points = shape.distance.closest(points)[1]
-    far = np.flatnonzero(pad_body_distances(model.hand, q, root, fingers, points) > TOUCH_GAP)
-    for i in far:
+    gaps = pad_body_distances(model.hand, q, root, fingers, points)
+    for i in np.flatnonzero(gaps > TOUCH_GAP):
         parts = np.flatnonzero(np.isin(hc.shapes.part_link, pad_body_rows(model.hand, hc, int(fingers[i]))))
         if len(parts) == 0:  # (a pad body without collision geometry: inf, stays)
             continue
         # the object's point nearest the body's surface sample nearest it (exact distances)
         other = shape.distance.closest(pad_nearest(hc, q, root, shape, parts)[1][None])[1][0]
-        before, after = pad_body_distances(model.hand, q, root, fingers[[i, i]], np.stack([points[i], other]))
-        if after < before:
+        if pad_body_distances(model.hand, q, root, fingers[[i]], other[None])[0] < gaps[i]:
             points[i] = other
             normals[i] = model.sdf.distance_and_gradient(other[None])[1][0]
     return points, normals
